@@ -1,0 +1,120 @@
+//! MAVLink dialect tables: for every message of the `ardupilotmega` dialect (which
+//! includes `common`, `standard`, `minimal` and friends) the facts a router needs —
+//! id, name, CRC_EXTRA, payload lengths, where the target address sits, and the field
+//! layout in wire order so tools can decode any field.
+//!
+//! The table in [`ardupilotmega`] is generated from the official MAVLink XML by
+//! `tools/gen-dialect` (see its README) and committed; nothing here parses XML at
+//! run time.
+
+mod ardupilotmega;
+
+/// The wire type of one message field (arrays carry their length in [`Field::array_len`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FieldType {
+    /// `uint8_t` (also `uint8_t_mavlink_version`).
+    U8,
+    /// `int8_t`.
+    I8,
+    /// `uint16_t`.
+    U16,
+    /// `int16_t`.
+    I16,
+    /// `uint32_t`.
+    U32,
+    /// `int32_t`.
+    I32,
+    /// `uint64_t`.
+    U64,
+    /// `int64_t`.
+    I64,
+    /// `float`.
+    F32,
+    /// `double`.
+    F64,
+    /// `char` (a `char[N]` array is a string, NUL-padded on the wire).
+    Char,
+}
+
+impl FieldType {
+    /// Size in bytes of one element of this type on the wire.
+    pub const fn size(self) -> usize {
+        match self {
+            FieldType::U8 | FieldType::I8 | FieldType::Char => 1,
+            FieldType::U16 | FieldType::I16 => 2,
+            FieldType::U32 | FieldType::I32 | FieldType::F32 => 4,
+            FieldType::U64 | FieldType::I64 | FieldType::F64 => 8,
+        }
+    }
+}
+
+/// One field of a message, in wire order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Field {
+    /// Field name as in the XML definition (e.g. `target_system`).
+    pub name: &'static str,
+    /// Element type.
+    pub ty: FieldType,
+    /// Number of elements for an array field; 0 for a scalar.
+    pub array_len: u8,
+    /// Byte offset of the field within the (untruncated) payload.
+    pub offset: u16,
+    /// True for MAVLink 2 extension fields (not covered by CRC_EXTRA, absent in v1).
+    pub extension: bool,
+}
+
+impl Field {
+    /// Total size in bytes of the field on the wire.
+    pub const fn size(&self) -> usize {
+        let n = if self.array_len == 0 {
+            1
+        } else {
+            self.array_len as usize
+        };
+        n * self.ty.size()
+    }
+}
+
+/// Everything the router and the capture tools know about one message id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MessageInfo {
+    /// Message id (24 bits on the wire in v2, 8 bits in v1).
+    pub id: u32,
+    /// Upper-case message name (e.g. `HEARTBEAT`).
+    pub name: &'static str,
+    /// The CRC_EXTRA seed byte folded into the frame checksum.
+    pub crc_extra: u8,
+    /// Payload length without extension fields (the v1 length).
+    pub min_len: u8,
+    /// Payload length with all extension fields.
+    pub max_len: u8,
+    /// Offset of the target system byte in the payload, if the message has one
+    /// (`target_system`, or `target` for MANUAL_CONTROL).
+    pub target_system_offset: Option<u8>,
+    /// Offset of the `target_component` byte in the payload, if the message has one.
+    pub target_component_offset: Option<u8>,
+    /// Fields in wire order.
+    pub fields: &'static [Field],
+}
+
+/// Name of the dialect the tables were generated from.
+pub const DIALECT_NAME: &str = "ardupilotmega";
+
+/// All messages of the dialect, sorted by id.
+pub fn messages() -> &'static [MessageInfo] {
+    &ardupilotmega::MESSAGES
+}
+
+/// Look a message up by id; `None` for ids the dialect does not define.
+#[inline]
+pub fn by_id(id: u32) -> Option<&'static MessageInfo> {
+    ardupilotmega::index_of(id).map(|i| &ardupilotmega::MESSAGES[i])
+}
+
+/// Look a message up by its exact (upper-case) name.
+pub fn by_name(name: &str) -> Option<&'static MessageInfo> {
+    ardupilotmega::BY_NAME
+        .binary_search_by(|(n, _)| (*n).cmp(name))
+        .ok()
+        .map(|i| &ardupilotmega::MESSAGES[ardupilotmega::BY_NAME[i].1 as usize])
+}

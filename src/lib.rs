@@ -1,0 +1,19 @@
+//! mavtables: a MAVLink router and firewall.
+//!
+//! The crate is layered so that the folder layout shows the architecture:
+//! - [`wire`]: MAVLink v1/v2 framing, CRC, the streaming parser, signatures (pure);
+//! - [`dialect`]: generated message tables (ids, names, CRC_EXTRA, lengths, fields);
+//! - [`config`]: the configuration language and its diagnostics;
+//! - [`filter`]: the filter chains;
+//! - [`routing`]: the sans-IO routing core (learning, decisions, queues, pacing);
+//! - [`io`]: the event loop and the UDP / serial drivers;
+//! - [`cli`]: the command line.
+
+pub mod address;
+pub mod cli;
+pub mod config;
+pub mod dialect;
+pub mod filter;
+pub mod io;
+pub mod routing;
+pub mod wire;
