@@ -1,5 +1,6 @@
 //! Reading MAVLink captures: ground-station `.tlog` files and classic `.pcap` files.
 //! Pure parsers over byte slices; callers read the files.
 
+pub mod link;
 pub mod pcap;
 pub mod tlog;

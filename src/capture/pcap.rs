@@ -1,14 +1,7 @@
-//! Classic libpcap files (`.pcap`): the UDP payloads they carry, from Ethernet, Linux
-//! cooked (SLL), BSD loopback (DLT_NULL) and raw IPv4 link types. Non-UDP packets are
-//! passed over and counted.
+//! Classic libpcap files (`.pcap`): the UDP payloads they carry (link types as in
+//! [`super::link`]). Non-UDP packets are passed over and counted.
 
-/// Link-layer types understood.
-const DLT_NULL: u32 = 0;
-const DLT_EN10MB: u32 = 1;
-const DLT_RAW: u32 = 101;
-const DLT_LINUX_SLL: u32 = 113;
-const DLT_IPV4: u32 = 228;
-const DLT_LINUX_SLL2: u32 = 276;
+use super::link;
 
 const GLOBAL_HEADER_LEN: usize = 24;
 const RECORD_HEADER_LEN: usize = 16;
@@ -97,9 +90,10 @@ impl<'a> Reader<'a> {
             failed: false,
         };
         r.link_type = r.u32_at(20) & 0x0fff_ffff;
-        match r.link_type {
-            DLT_NULL | DLT_EN10MB | DLT_RAW | DLT_LINUX_SLL | DLT_IPV4 | DLT_LINUX_SLL2 => Ok(r),
-            other => Err(PcapError::UnsupportedLinkType(other)),
+        if link::supported(r.link_type) {
+            Ok(r)
+        } else {
+            Err(PcapError::UnsupportedLinkType(r.link_type))
         }
     }
 
@@ -116,67 +110,6 @@ impl<'a> Reader<'a> {
             u32::from_le_bytes(b)
         }
     }
-
-    /// The IPv4 packet inside a link-layer frame, if it carries one.
-    fn ipv4<'p>(&self, frame: &'p [u8]) -> Option<&'p [u8]> {
-        let (ethertype_ok, skip) = match self.link_type {
-            DLT_NULL => {
-                let fam = frame.get(..4)?;
-                let le = u32::from_le_bytes([fam[0], fam[1], fam[2], fam[3]]);
-                let be = u32::from_be_bytes([fam[0], fam[1], fam[2], fam[3]]);
-                (le == 2 || be == 2, 4)
-            }
-            DLT_EN10MB => {
-                let mut at = 12;
-                let mut ethertype = u16::from_be_bytes([*frame.get(at)?, *frame.get(at + 1)?]);
-                while ethertype == 0x8100 || ethertype == 0x88a8 {
-                    at += 4;
-                    ethertype = u16::from_be_bytes([*frame.get(at)?, *frame.get(at + 1)?]);
-                }
-                (ethertype == 0x0800, at + 2)
-            }
-            DLT_LINUX_SLL => (
-                u16::from_be_bytes([*frame.get(14)?, *frame.get(15)?]) == 0x0800,
-                16,
-            ),
-            DLT_LINUX_SLL2 => (
-                u16::from_be_bytes([*frame.first()?, *frame.get(1)?]) == 0x0800,
-                20,
-            ),
-            _ => (true, 0),
-        };
-        if !ethertype_ok {
-            return None;
-        }
-        frame.get(skip..)
-    }
-}
-
-/// The UDP datagram inside an IPv4 packet: (source, destination, payload, payload start).
-type Udp<'p> = (([u8; 4], u16), ([u8; 4], u16), &'p [u8], usize);
-
-fn udp_in_ipv4(ip: &[u8]) -> Option<Udp<'_>> {
-    let first = *ip.first()?;
-    if first >> 4 != 4 {
-        return None;
-    }
-    let ihl = (first & 0x0f) as usize * 4;
-    let total = u16::from_be_bytes([*ip.get(2)?, *ip.get(3)?]) as usize;
-    let fragment = u16::from_be_bytes([*ip.get(6)?, *ip.get(7)?]);
-    if *ip.get(9)? != 17 || ihl < 20 || fragment & 0x1fff != 0 || fragment & 0x2000 != 0 {
-        return None;
-    }
-    let src: [u8; 4] = ip.get(12..16)?.try_into().ok()?;
-    let dst: [u8; 4] = ip.get(16..20)?.try_into().ok()?;
-    let udp = ip.get(ihl..total.min(ip.len()))?;
-    let sport = u16::from_be_bytes([*udp.first()?, *udp.get(1)?]);
-    let dport = u16::from_be_bytes([*udp.get(2)?, *udp.get(3)?]);
-    let ulen = u16::from_be_bytes([*udp.get(4)?, *udp.get(5)?]) as usize;
-    if ulen < 8 {
-        return None;
-    }
-    let payload = udp.get(8..ulen)?;
-    Some(((src, sport), (dst, dport), payload, ihl + 8))
 }
 
 impl<'a> Iterator for Reader<'a> {
@@ -199,16 +132,14 @@ impl<'a> Iterator for Reader<'a> {
             };
             self.pos = start + incl;
             let timestamp_us = secs * 1_000_000 + if self.nanos { frac / 1000 } else { frac };
-            let found = self.ipv4(frame).and_then(udp_in_ipv4);
-            match found {
-                Some((source, destination, payload, payload_at)) => {
-                    let ip_at = frame.len() - self.ipv4(frame).map_or(0, <[u8]>::len);
+            match link::udp_payload(self.link_type, frame) {
+                Some(udp) => {
                     return Some(Ok(Datagram {
                         timestamp_us,
-                        source,
-                        destination,
-                        payload,
-                        offset: start + ip_at + payload_at,
+                        source: udp.source,
+                        destination: udp.destination,
+                        payload: udp.payload,
+                        offset: start + udp.offset,
                     }));
                 }
                 None => self.skipped += 1,

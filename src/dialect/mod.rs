@@ -8,6 +8,7 @@
 //! run time.
 
 mod ardupilotmega;
+pub mod decode;
 
 /// The wire type of one message field (arrays carry their length in [`Field::array_len`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
