@@ -17,9 +17,14 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, String>
         if let Some(v) = arg.strip_prefix("--config=") {
             opts.config = Some(v.to_string());
         } else if arg == "--config" {
-            opts.config = Some(it.next().ok_or("the required argument for option '--config' is missing")?);
+            opts.config = Some(
+                it.next()
+                    .ok_or("the required argument for option '--config' is missing")?,
+            );
         } else if arg == "--loglevel" {
-            let v = it.next().ok_or("the required argument for option '--loglevel' is missing")?;
+            let v = it
+                .next()
+                .ok_or("the required argument for option '--loglevel' is missing")?;
             opts.loglevel = v
                 .parse::<u32>()
                 .map(|n| n.min(3) as u8)

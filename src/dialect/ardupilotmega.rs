@@ -2,12 +2,48 @@
 use super::{Field, FieldType, MessageInfo};
 
 static F_HEARTBEAT: [Field; 6] = [
-    Field { name: "custom_mode", ty: FieldType::U32, array_len: 0, offset: 0, extension: false },
-    Field { name: "type", ty: FieldType::U8, array_len: 0, offset: 4, extension: false },
-    Field { name: "autopilot", ty: FieldType::U8, array_len: 0, offset: 5, extension: false },
-    Field { name: "base_mode", ty: FieldType::U8, array_len: 0, offset: 6, extension: false },
-    Field { name: "system_status", ty: FieldType::U8, array_len: 0, offset: 7, extension: false },
-    Field { name: "mavlink_version", ty: FieldType::U8, array_len: 0, offset: 8, extension: false },
+    Field {
+        name: "custom_mode",
+        ty: FieldType::U32,
+        array_len: 0,
+        offset: 0,
+        extension: false,
+    },
+    Field {
+        name: "type",
+        ty: FieldType::U8,
+        array_len: 0,
+        offset: 4,
+        extension: false,
+    },
+    Field {
+        name: "autopilot",
+        ty: FieldType::U8,
+        array_len: 0,
+        offset: 5,
+        extension: false,
+    },
+    Field {
+        name: "base_mode",
+        ty: FieldType::U8,
+        array_len: 0,
+        offset: 6,
+        extension: false,
+    },
+    Field {
+        name: "system_status",
+        ty: FieldType::U8,
+        array_len: 0,
+        offset: 7,
+        extension: false,
+    },
+    Field {
+        name: "mavlink_version",
+        ty: FieldType::U8,
+        array_len: 0,
+        offset: 8,
+        extension: false,
+    },
 ];
 
 pub(super) static MESSAGES: [MessageInfo; 1] = [MessageInfo {
