@@ -254,26 +254,25 @@ impl<'a> Parser<'a> {
             dest: None,
         };
         let at = self.c.expected_at();
-        if let Some((span, word)) = self.c.peek_word() {
-            if word != "from" && word != "to" {
-                if !word
-                    .chars()
-                    .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
-                {
-                    let mut d = Diagnostic::new(span, INVALID_CONDITION);
-                    if !word.is_empty()
-                        && crate::dialect::by_name(&word.to_ascii_uppercase()).is_some()
-                    {
-                        d = d.with_note(format!(
-                            "message names are written in upper case: '{}'",
-                            word.to_ascii_uppercase()
-                        ));
-                    }
-                    return Err(d);
+        if let Some((span, word)) = self.c.peek_word()
+            && word != "from"
+            && word != "to"
+        {
+            if !word
+                .chars()
+                .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+            {
+                let mut d = Diagnostic::new(span, INVALID_CONDITION);
+                let upper = word.to_ascii_uppercase();
+                if crate::dialect::by_name(&upper).is_some() {
+                    d = d.with_note(format!(
+                        "message names are written in upper case: '{upper}'"
+                    ));
                 }
-                self.c.word();
-                cond.packet_type = Some(span);
+                return Err(d);
             }
+            self.c.word();
+            cond.packet_type = Some(span);
         }
         self.c.skip_padding();
         if self.c.eat_keyword("from").is_some() {
@@ -416,10 +415,11 @@ impl<'a> Parser<'a> {
     /// An error at `at`, widened to the whole word when `at` is the start of one.
     fn value_error(&self, at: Span, message: &str) -> Diagnostic {
         let mut span = at;
-        if !at.is_empty() && at.start == self.c.pos() {
-            if let Some((word, _)) = self.c.peek_word() {
-                span = word;
-            }
+        if !at.is_empty()
+            && at.start == self.c.pos()
+            && let Some((word, _)) = self.c.peek_word()
+        {
+            span = word;
         }
         Diagnostic::new(span, message)
     }

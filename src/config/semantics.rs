@@ -256,7 +256,7 @@ impl<'a> Checker<'a, '_> {
 
     fn subnet(&mut self, s: &SubnetAst) -> Option<Subnet> {
         let address = self.address(&s.address);
-        let subnet = match s.mask {
+        match s.mask {
             MaskAst::Exact => Some(Subnet::exact(address?)),
             MaskAst::Explicit(mask) => {
                 let mask = self.address(&mask);
@@ -290,8 +290,7 @@ impl<'a> Checker<'a, '_> {
                     }
                 }
             }
-        };
-        subnet
+        }
     }
 
     fn rule(&mut self, chain: ChainId, rule: &ast::Rule) -> Option<Rule> {
