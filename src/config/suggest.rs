@@ -82,9 +82,10 @@ mod tests {
             Some("did you mean 'baudrate'?")
         );
         assert_eq!(did_you_mean("zzzzzz", c), None);
+        assert_eq!(closest("PIN", ["PING", "PONG", "PIN_X"], 3), vec!["PING"]);
         assert_eq!(
-            closest("PIN", ["PING", "PONG", "PIN_X"], 3),
-            vec!["PING", "PIN_X"]
+            closest("GPS_STATUSS", ["GPS_STATUS", "GPS_STATUSES", "X"], 3).len(),
+            2
         );
     }
 }
