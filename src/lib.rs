@@ -1,6 +1,7 @@
 //! mavtables: a MAVLink router and firewall.
 //!
 //! The crate is layered so that the folder layout shows the architecture:
+//! - [`capture`]: reading `.tlog` and `.pcap` captures (pure);
 //! - [`wire`]: MAVLink v1/v2 framing, CRC, the streaming parser, signatures (pure);
 //! - [`dialect`]: generated message tables (ids, names, CRC_EXTRA, lengths, fields);
 //! - [`config`]: the configuration language and its diagnostics;
@@ -10,6 +11,7 @@
 //! - [`cli`]: the command line.
 
 pub mod address;
+pub mod capture;
 pub mod cli;
 pub mod config;
 pub mod dialect;

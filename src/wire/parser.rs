@@ -1,0 +1,263 @@
+//! The streaming frame parser: bytes in (arbitrary chunks from a serial port, or whole
+//! datagrams), checked frames out.
+//!
+//! Every candidate frame is checked (known id, known incompatibility flags, payload
+//! length within the message's limits, checksum with CRC_EXTRA). When a candidate is
+//! rejected the parser resumes scanning at the byte after the candidate's start byte,
+//! so a corrupt frame never hides a good frame behind it. Frames lying wholly inside
+//! the chunk being fed are handed out without copying; only a frame that straddles two
+//! chunks is assembled in a small internal buffer (at most one frame long).
+
+use super::frame::{
+    Candidate, Frame, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN, Rejection, check_candidate,
+};
+
+/// Running totals of what a parser has seen.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ParserStats {
+    /// Valid frames handed out.
+    pub frames: u64,
+    /// Candidates rejected for a checksum mismatch.
+    pub bad_crc: u64,
+    /// Candidates rejected for a message id outside the dialect.
+    pub unknown_id: u64,
+    /// Candidates rejected for unknown incompatibility flags.
+    pub bad_flags: u64,
+    /// Candidates rejected for a payload length the message does not allow.
+    pub bad_length: u64,
+    /// Candidates cut short by the end of the stream ([`Parser::finish`]).
+    pub truncated: u64,
+    /// Bytes skipped while looking for a frame start (including the start bytes of
+    /// rejected candidates).
+    pub junk_bytes: u64,
+}
+
+impl ParserStats {
+    fn count(&mut self, why: Rejection) {
+        match why {
+            Rejection::BadCrc => self.bad_crc += 1,
+            Rejection::UnknownId(_) => self.unknown_id += 1,
+            Rejection::BadFlags(_) => self.bad_flags += 1,
+            Rejection::BadLength { .. } => self.bad_length += 1,
+            Rejection::Truncated { .. } => self.truncated += 1,
+        }
+    }
+
+    /// Total candidates rejected, whatever the reason.
+    pub fn rejected(&self) -> u64 {
+        self.bad_crc + self.unknown_id + self.bad_flags + self.bad_length + self.truncated
+    }
+}
+
+/// What the parser reports while it works. Only [`ParseEvents::frame`] is required.
+pub trait ParseEvents {
+    /// A valid frame was found.
+    fn frame(&mut self, frame: Frame<'_>);
+    /// A candidate starting at stream offset `offset` was rejected.
+    fn rejected(&mut self, _offset: u64, _why: Rejection) {}
+    /// `len` bytes starting at stream offset `offset` were skipped as junk.
+    fn junk(&mut self, _offset: u64, _len: usize) {}
+}
+
+/// Adapts a closure that only wants frames.
+struct OnFrame<F>(F);
+
+impl<F: FnMut(Frame<'_>)> ParseEvents for OnFrame<F> {
+    #[inline]
+    fn frame(&mut self, frame: Frame<'_>) {
+        (self.0)(frame)
+    }
+}
+
+#[inline]
+fn is_magic(b: u8) -> bool {
+    b == MAGIC_V1 || b == MAGIC_V2
+}
+
+/// A streaming MAVLink v1/v2 parser. One per byte stream (serial port, UDP sender, file).
+#[derive(Debug)]
+pub struct Parser {
+    /// A frame candidate that started in an earlier chunk (starts with a magic byte).
+    pending: Vec<u8>,
+    /// Stream offset of `pending[0]`.
+    pending_offset: u64,
+    /// Stream offset of the next byte to be fed.
+    position: u64,
+    stats: ParserStats,
+}
+
+impl Default for Parser {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Parser {
+    /// A parser at the start of a stream.
+    pub fn new() -> Self {
+        Parser {
+            pending: Vec::with_capacity(MAX_FRAME_LEN),
+            pending_offset: 0,
+            position: 0,
+            stats: ParserStats::default(),
+        }
+    }
+
+    /// Totals so far.
+    pub fn stats(&self) -> &ParserStats {
+        &self.stats
+    }
+
+    /// Number of bytes fed so far.
+    pub fn position(&self) -> u64 {
+        self.position
+    }
+
+    /// Bytes of an incomplete frame candidate held back, waiting for the rest.
+    pub fn pending_len(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Stream offset where the held-back candidate starts, if there is one.
+    pub fn pending_offset(&self) -> Option<u64> {
+        (!self.pending.is_empty()).then_some(self.pending_offset)
+    }
+
+    /// Forgets any partial frame (e.g. when a datagram arrives from another sender).
+    /// The held-back bytes are counted as junk.
+    pub fn clear(&mut self) {
+        self.stats.junk_bytes += self.pending.len() as u64;
+        self.pending.clear();
+    }
+
+    /// Feeds bytes and calls `on_frame` for every valid frame they complete.
+    #[inline]
+    pub fn feed(&mut self, data: &[u8], on_frame: impl FnMut(Frame<'_>)) {
+        self.feed_events(data, &mut OnFrame(on_frame));
+    }
+
+    /// Feeds bytes and reports frames, rejected candidates and junk to `events`.
+    pub fn feed_events<E: ParseEvents>(&mut self, data: &[u8], events: &mut E) {
+        let data = self.finish_pending(data, false, events);
+        self.scan(data, events);
+    }
+
+    /// Declares the end of the stream (end of file, or a link gone quiet): a held-back
+    /// candidate that is still incomplete is rejected as truncated, and the bytes behind
+    /// its start are scanned again, so a valid frame hiding there is not lost.
+    pub fn finish<E: ParseEvents>(&mut self, events: &mut E) {
+        self.finish_pending(&[], true, events);
+    }
+
+    /// [`Parser::finish`] for callers that only want frames.
+    pub fn finish_frames(&mut self, on_frame: impl FnMut(Frame<'_>)) {
+        self.finish(&mut OnFrame(on_frame));
+    }
+
+    /// Completes (or rejects) a candidate carried over from earlier chunks, taking
+    /// bytes from `data` only as needed. Returns the bytes of `data` not yet looked at.
+    fn finish_pending<'d, E: ParseEvents>(
+        &mut self,
+        mut data: &'d [u8],
+        at_end: bool,
+        events: &mut E,
+    ) -> &'d [u8] {
+        while !self.pending.is_empty() {
+            // After a rejection the held-back bytes may start with junk: skip to a magic byte.
+            if !is_magic(self.pending[0]) {
+                let skip = self
+                    .pending
+                    .iter()
+                    .position(|&b| is_magic(b))
+                    .unwrap_or(self.pending.len());
+                self.skip_pending(skip, events);
+                continue;
+            }
+            match check_candidate(&self.pending) {
+                Candidate::NeedMore(total) => {
+                    let take = (total - self.pending.len()).min(data.len());
+                    self.pending.extend_from_slice(&data[..take]);
+                    data = &data[take..];
+                    self.position += take as u64;
+                    if self.pending.len() < total {
+                        if !at_end {
+                            return data;
+                        }
+                        // No more bytes will come: the candidate is cut short.
+                        let why = Rejection::Truncated {
+                            needed: total,
+                            have: self.pending.len(),
+                        };
+                        self.stats.count(why);
+                        events.rejected(self.pending_offset, why);
+                        self.skip_pending(1, events);
+                    }
+                }
+                Candidate::Frame(len, info) => {
+                    self.stats.frames += 1;
+                    events.frame(Frame::new_unchecked(
+                        &self.pending[..len],
+                        info,
+                        self.pending_offset,
+                    ));
+                    self.pending.drain(..len);
+                    self.pending_offset += len as u64;
+                }
+                Candidate::Reject(why) => {
+                    self.stats.count(why);
+                    events.rejected(self.pending_offset, why);
+                    // Resynchronise at the byte after the rejected start byte.
+                    self.skip_pending(1, events);
+                }
+            }
+        }
+        data
+    }
+
+    /// Drops the first `n` held-back bytes as junk.
+    fn skip_pending<E: ParseEvents>(&mut self, n: usize, events: &mut E) {
+        self.stats.junk_bytes += n as u64;
+        events.junk(self.pending_offset, n);
+        self.pending.drain(..n);
+        self.pending_offset += n as u64;
+    }
+
+    /// Scans `data` (with nothing pending) and keeps an incomplete tail for later.
+    fn scan<E: ParseEvents>(&mut self, data: &[u8], events: &mut E) {
+        let base = self.position;
+        self.position += data.len() as u64;
+        let mut i = 0;
+        while i < data.len() {
+            if !is_magic(data[i]) {
+                let skip = data[i..]
+                    .iter()
+                    .position(|&b| is_magic(b))
+                    .unwrap_or(data.len() - i);
+                self.stats.junk_bytes += skip as u64;
+                events.junk(base + i as u64, skip);
+                i += skip;
+                continue;
+            }
+            let rest = &data[i..];
+            match check_candidate(rest) {
+                Candidate::Frame(len, info) => {
+                    self.stats.frames += 1;
+                    events.frame(Frame::new_unchecked(&rest[..len], info, base + i as u64));
+                    i += len;
+                }
+                Candidate::Reject(why) => {
+                    self.stats.count(why);
+                    events.rejected(base + i as u64, why);
+                    self.stats.junk_bytes += 1;
+                    events.junk(base + i as u64, 1);
+                    i += 1;
+                }
+                Candidate::NeedMore(_) => {
+                    self.pending.extend_from_slice(rest);
+                    self.pending_offset = base + i as u64;
+                    return;
+                }
+            }
+        }
+    }
+}
