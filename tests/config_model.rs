@@ -168,3 +168,42 @@ fn acyclic_graphs_with_shared_targets_are_fine() {
     src += "chain c20000 { accept; }\n";
     assert_eq!(config(&src).chains.len(), 20_002);
 }
+
+#[test]
+fn real_message_names_resolve_to_their_ids() {
+    let c = config(
+        "chain default {\n\
+           reject if ENCAPSULATED_DATA;\n\
+           accept if PING;\n\
+           accept if GPS_STATUS;\n\
+           accept if HEARTBEAT;\n\
+           accept if MISSION_REQUEST_LIST;\n\
+         }",
+    );
+    let ids: Vec<_> = c
+        .chain(c.default_chain)
+        .rules
+        .iter()
+        .map(|r| r.condition.message_id)
+        .collect();
+    assert_eq!(ids, [Some(131), Some(4), Some(25), Some(0), Some(43)]);
+}
+
+#[test]
+fn unknown_names_get_close_real_suggestions() {
+    let src = "chain default { accept if GPS_STATU; reject if PNG; }";
+    let text = match load(src) {
+        Ok(_) => panic!("should fail"),
+        Err(e) => mavtables::config::render_errors("f", src, &e),
+    };
+    assert!(
+        text.contains("f:1:27: Invalid packet name (\"GPS_STATU\").\n"),
+        "{text}"
+    );
+    assert!(text.contains("'GPS_STATUS'"), "{text}");
+    assert!(
+        text.contains("f:1:48: Invalid packet name (\"PNG\").\n"),
+        "{text}"
+    );
+    assert!(text.contains("'PING'"), "{text}");
+}
