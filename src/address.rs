@@ -33,3 +33,6 @@ impl fmt::Display for Address {
         write!(f, "{}.{}", self.system, self.component)
     }
 }
+
+mod subnet;
+pub use subnet::Subnet;

@@ -1,24 +1,22 @@
-//! The `mavtables` binary: parses the command line and runs the router.
+//! The `mavtables` binary: handles the command line, then runs the router.
 
+use mavtables::cli::{Outcome, run};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    match mavtables::cli::parse(std::env::args().skip(1)) {
-        Ok(opts) => match &opts.config {
-            Some(path) if std::path::Path::new(path).exists() => {
-                eprintln!(
-                    "mavtables: configuration {path} accepted; the router itself is not built yet"
-                );
-                ExitCode::SUCCESS
-            }
-            _ => {
-                eprintln!("error: mavtables could not locate a configuration file");
-                ExitCode::FAILURE
-            }
-        },
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
+    let args = std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    match run(args, &mut std::io::stdout(), &mut std::io::stderr()) {
+        Outcome::Exit(code) => ExitCode::from(code),
+        Outcome::Run { path, config, .. } => {
+            eprintln!(
+                "mavtables: configuration {path} loaded ({} interfaces, {} chains); \
+                 the router itself is not implemented yet",
+                config.interfaces.len(),
+                config.chains.len()
+            );
+            ExitCode::SUCCESS
         }
     }
 }

@@ -1,0 +1,26 @@
+//! Any bytes given to the configuration loader yield a configuration or located errors,
+//! never a panic; the `--ast` printer and the error renderer cope with whatever parses.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use mavtables::config;
+
+fuzz_target!(|data: &[u8]| {
+    let src = String::from_utf8_lossy(data);
+    match config::load(&src) {
+        Ok(loaded) => {
+            let c = loaded.config;
+            assert!(c.default_chain.0 < c.chains.len());
+        }
+        Err(errors) => {
+            assert!(!errors.is_empty());
+            for e in &errors {
+                assert!(e.span.start <= src.len() && e.span.end <= src.len());
+                let _ = e.render("fuzz.conf", &src);
+            }
+        }
+    }
+    if let Ok(ast) = config::parse(&src) {
+        let _ = config::print_ast(&ast, "fuzz.conf");
+    }
+});

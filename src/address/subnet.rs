@@ -1,0 +1,150 @@
+//! MAVLink subnets: an address plus a 16-bit mask, like an IP subnet over `system.component`.
+
+use super::Address;
+use std::fmt;
+
+/// A set of MAVLink addresses: every address whose masked bits equal the subnet's masked bits.
+///
+/// The mask is 16 bits wide with the system id in the high byte, so `255.0` matches on the
+/// system only. The stored address is kept as written (not pre-masked).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Subnet {
+    /// The address the subnet was written with.
+    pub address: Address,
+    /// Which bits must match (system in the high byte, component in the low byte).
+    pub mask: u16,
+}
+
+impl Subnet {
+    /// A subnet from an address and an explicit `system.component` mask.
+    pub const fn new(address: Address, mask: Address) -> Self {
+        Subnet {
+            address,
+            mask: mask.to_u16(),
+        }
+    }
+
+    /// The subnet holding exactly one address (the `S.C` form, same as `S.C/16`).
+    pub const fn exact(address: Address) -> Self {
+        Subnet {
+            address,
+            mask: 0xFFFF,
+        }
+    }
+
+    /// The `S.C/bits` form: the leftmost `bits` (0..=16) of the 16-bit address must match.
+    /// `None` when `bits` is above 16.
+    pub const fn with_prefix(address: Address, bits: u8) -> Option<Self> {
+        if bits > 16 {
+            return None;
+        }
+        let mask = if bits == 0 {
+            0
+        } else {
+            u16::MAX << (16 - bits)
+        };
+        Some(Subnet { address, mask })
+    }
+
+    /// The `S.C\bits` form: the system is ignored and the leftmost `bits` (0..=8) of the
+    /// component must match. `None` when `bits` is above 8.
+    pub const fn with_component_prefix(address: Address, bits: u8) -> Option<Self> {
+        if bits > 8 {
+            return None;
+        }
+        let mask = if bits == 0 {
+            0
+        } else {
+            (u8::MAX << (8 - bits)) as u16
+        };
+        Some(Subnet { address, mask })
+    }
+
+    /// Whether `address` lies in this subnet.
+    #[inline]
+    pub const fn contains(&self, address: Address) -> bool {
+        address.to_u16() & self.mask == self.address.to_u16() & self.mask
+    }
+}
+
+impl fmt::Display for Subnet {
+    /// Always the explicit form `S.C:M.M`, which round-trips through the config language.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}", self.address, Address::from_u16(self.mask))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn a(s: u8, c: u8) -> Address {
+        Address::new(s, c)
+    }
+
+    #[test]
+    fn slash_masks_follow_the_table() {
+        let cases = [
+            (16, 0xFFFF),
+            (15, 0xFFFE),
+            (9, 0xFF80),
+            (8, 0xFF00),
+            (1, 0x8000),
+            (0, 0),
+        ];
+        for (bits, mask) in cases {
+            assert_eq!(
+                Subnet::with_prefix(a(0, 0), bits).map(|s| s.mask),
+                Some(mask)
+            );
+        }
+        assert_eq!(Subnet::with_prefix(a(0, 0), 17), None);
+    }
+
+    #[test]
+    fn backslash_masks_follow_the_table() {
+        let cases = [(8, 0x00FF), (7, 0x00FE), (1, 0x0080), (0, 0)];
+        for (bits, mask) in cases {
+            assert_eq!(
+                Subnet::with_component_prefix(a(0, 0), bits).map(|s| s.mask),
+                Some(mask)
+            );
+        }
+        assert_eq!(Subnet::with_component_prefix(a(0, 0), 9), None);
+    }
+
+    #[test]
+    fn containment_examples() {
+        // 1.255/9: system 1, component 128 and above.
+        let s = Subnet::with_prefix(a(1, 255), 9).unwrap();
+        assert!(s.contains(a(1, 128)) && s.contains(a(1, 255)));
+        assert!(!s.contains(a(1, 127)) && !s.contains(a(2, 200)));
+        // 192.0/8: any component of system 192.
+        let s = Subnet::with_prefix(a(192, 0), 8).unwrap();
+        assert!(s.contains(a(192, 7)) && !s.contains(a(193, 7)));
+        // 128.0\1: any system, component 127 and below.
+        let s = Subnet::with_component_prefix(a(128, 0), 1).unwrap();
+        assert!(s.contains(a(5, 127)) && !s.contains(a(5, 128)));
+        // 255.0:128.240: system 128 and above, components 0-15.
+        let s = Subnet::new(a(255, 0), a(128, 240));
+        assert!(s.contains(a(128, 15)) && s.contains(a(200, 0)));
+        assert!(!s.contains(a(127, 0)) && !s.contains(a(128, 16)));
+        // Exact and match-everything forms.
+        assert!(Subnet::exact(a(3, 4)).contains(a(3, 4)));
+        assert!(!Subnet::exact(a(3, 4)).contains(a(3, 5)));
+        assert!(Subnet::with_prefix(a(9, 9), 0).unwrap().contains(a(1, 2)));
+        assert!(
+            Subnet::with_component_prefix(a(9, 9), 0)
+                .unwrap()
+                .contains(a(1, 2))
+        );
+    }
+
+    #[test]
+    fn displays_in_explicit_form() {
+        assert_eq!(
+            Subnet::with_prefix(a(192, 0), 8).unwrap().to_string(),
+            "192.0:255.0"
+        );
+    }
+}

@@ -1,0 +1,94 @@
+//! Everything the binary does before the router starts.
+
+use super::{Options, find_config, help, parse, version};
+use crate::config::{self, Config, render_errors};
+use std::io::Write;
+use std::path::Path;
+
+/// What `main` should do after the command line has been handled.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Exit now with this status (help, version, `--ast`, `--check`, or an error).
+    Exit(u8),
+    /// Run the router with this valid configuration.
+    Run {
+        /// The loaded configuration.
+        config: Config,
+        /// Where it was read from.
+        path: String,
+        /// The command-line options.
+        options: Options,
+    },
+}
+
+/// Handles the command line (`args` includes the program name). Messages go to `out` and
+/// `err`; the environment and filesystem are read for the configuration search.
+pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outcome {
+    let mut args = args.into_iter();
+    let argv0 = args.next().unwrap_or_else(|| "mavtables".to_string());
+    let options = match parse(args) {
+        Ok(o) => o,
+        Err(e) => return fail(err, &e),
+    };
+    if options.help {
+        let _ = out.write_all(help(&argv0).as_bytes());
+        return Outcome::Exit(0);
+    }
+    if options.version {
+        let _ = out.write_all(version().as_bytes());
+        return Outcome::Exit(0);
+    }
+    let found = find_config(
+        options.config.as_deref(),
+        |k| std::env::var(k).ok(),
+        Path::exists,
+    );
+    let Some(path) = found else {
+        return fail(err, "mavtables could not locate a configuration file");
+    };
+    let src = match std::fs::read(&path) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) => {
+            return fail(
+                err,
+                &format!("could not read configuration file {path}: {e}"),
+            );
+        }
+    };
+    if options.ast {
+        return match config::parse(&src) {
+            Ok(ast) => {
+                let _ = out.write_all(config::print_ast(&ast, &path).as_bytes());
+                Outcome::Exit(0)
+            }
+            Err(d) => {
+                let _ = err.write_all(d.render(&path, &src).as_bytes());
+                Outcome::Exit(1)
+            }
+        };
+    }
+    let loaded = match config::load(&src) {
+        Ok(l) => l,
+        Err(errors) => {
+            let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
+            return Outcome::Exit(1);
+        }
+    };
+    for w in &loaded.warnings {
+        let _ = writeln!(err, "warning: {path}: {w}");
+    }
+    if options.check {
+        let _ = writeln!(out, "{path}: configuration is valid");
+        return Outcome::Exit(0);
+    }
+    Outcome::Run {
+        config: loaded.config,
+        path,
+        options,
+    }
+}
+
+fn fail(err: &mut dyn Write, message: &str) -> Outcome {
+    let _ = writeln!(err, "error: {message}");
+    Outcome::Exit(1)
+}

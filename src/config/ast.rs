@@ -1,0 +1,164 @@
+//! The syntax tree of a configuration file: what was written, where, with no meaning
+//! attached yet. Every piece of text is kept as a [`Span`] into the source so that the
+//! `--ast` printer can show it raw and later checks can point at it.
+
+use super::Span;
+
+/// A parsed configuration file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ast<'a> {
+    /// The source text the spans point into.
+    pub src: &'a str,
+    /// Top-level statements and blocks in file order.
+    pub items: Vec<Item>,
+}
+
+impl<'a> Ast<'a> {
+    /// The source text of `span`.
+    pub fn text(&self, span: Span) -> &'a str {
+        self.src.get(span.start..span.end).unwrap_or("")
+    }
+}
+
+/// A top-level statement or block.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Item {
+    /// `default_action accept|reject;`
+    DefaultAction {
+        /// The `default_action` keyword.
+        keyword: Span,
+        /// The value word.
+        value: Span,
+        /// True for `accept`.
+        accept: bool,
+    },
+    /// `udp { ... }`
+    Udp {
+        /// The `udp` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<UdpSetting>,
+    },
+    /// `serial { ... }`
+    Serial {
+        /// The `serial` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<SerialSetting>,
+    },
+    /// `chain NAME { rules }`
+    Chain {
+        /// The chain name.
+        name: Span,
+        /// Rules in order.
+        rules: Vec<Rule>,
+    },
+}
+
+/// A statement of a `udp` block; each span covers the value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum UdpSetting {
+    /// `port N;`
+    Port(Span),
+    /// `address A.B.C.D;` with the span of each octet.
+    Address {
+        /// The whole address.
+        span: Span,
+        /// The four octets.
+        octets: [Span; 4],
+    },
+    /// `max_bitrate N;`
+    MaxBitrate(Span),
+}
+
+/// A statement of a `serial` block; each span covers the value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SerialSetting {
+    /// `device PATH;`
+    Device(Span),
+    /// `baudrate N;`
+    Baudrate(Span),
+    /// `flow_control yes|no;`
+    FlowControl {
+        /// The value word.
+        span: Span,
+        /// True for `yes`.
+        enabled: bool,
+    },
+    /// `preload S.C;`
+    Preload(AddressAst),
+}
+
+/// A written MAVLink address `S.C`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AddressAst {
+    /// The whole address.
+    pub span: Span,
+    /// The system number.
+    pub system: Span,
+    /// The component number.
+    pub component: Span,
+}
+
+/// A written MAVLink subnet in one of its four forms.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SubnetAst {
+    /// The whole subnet text.
+    pub span: Span,
+    /// The address part.
+    pub address: AddressAst,
+    /// The mask part.
+    pub mask: MaskAst,
+}
+
+/// The mask part of a subnet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MaskAst {
+    /// No mask: exact match.
+    Exact,
+    /// `:S.C` explicit mask.
+    Explicit(AddressAst),
+    /// `/bits` over the whole 16-bit address.
+    Slash(Span),
+    /// `\bits` over the component only.
+    Backslash(Span),
+}
+
+/// A rule of a chain.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Rule {
+    /// The action keyword (`accept`, `reject`, `call`, `goto`).
+    pub keyword: Span,
+    /// What the rule does.
+    pub action: ActionAst,
+    /// The priority number after `with priority`, sign included.
+    pub priority: Option<Span>,
+    /// The `if` part.
+    pub condition: Option<ConditionAst>,
+}
+
+/// The action of a rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionAst {
+    /// `accept`
+    Accept,
+    /// `reject`
+    Reject,
+    /// `call NAME` (span of the name).
+    Call(Span),
+    /// `goto NAME` (span of the name).
+    Goto(Span),
+}
+
+/// `if [TYPE] [from SUBNET] [to SUBNET]`
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ConditionAst {
+    /// The `if` keyword.
+    pub keyword: Span,
+    /// The packet type name.
+    pub packet_type: Option<Span>,
+    /// The subnet after `from`.
+    pub source: Option<SubnetAst>,
+    /// The subnet after `to`.
+    pub dest: Option<SubnetAst>,
+}

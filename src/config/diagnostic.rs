@@ -1,0 +1,143 @@
+//! Located diagnostics: `file:line:col: message`, the offending source line, and a caret
+//! line under the position, followed by optional notes.
+
+use super::Span;
+use std::fmt;
+
+/// A located error in a configuration file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Diagnostic {
+    /// Where the problem is (byte offsets into the source).
+    pub span: Span,
+    /// What is wrong, in one line.
+    pub message: String,
+    /// Extra lines shown after the caret (suggestions, the other places involved).
+    pub notes: Vec<String>,
+}
+
+impl Diagnostic {
+    /// A diagnostic with no notes.
+    pub fn new(span: Span, message: impl Into<String>) -> Self {
+        Diagnostic {
+            span,
+            message: message.into(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// Adds a note line.
+    pub fn with_note(mut self, note: impl Into<String>) -> Self {
+        self.notes.push(note.into());
+        self
+    }
+
+    /// Renders the diagnostic against the source it was found in.
+    pub fn render(&self, file: &str, src: &str) -> String {
+        let pos = Position::of(src, self.span.start);
+        let line_text = pos.line_text(src);
+        let mut out = format!("{file}:{}:{}: {}\n", pos.line, pos.column, self.message);
+        out.push_str(line_text);
+        out.push('\n');
+        // The caret line copies tabs so the caret lines up however tabs are displayed.
+        let before = &line_text[..pos.byte_in_line.min(line_text.len())];
+        for c in before.chars() {
+            out.push(if c == '\t' { '\t' } else { ' ' });
+        }
+        let rest = &line_text[before.len()..];
+        let width = self
+            .span
+            .end
+            .saturating_sub(self.span.start)
+            .min(rest.len());
+        let carets = rest.get(..width).map_or(0, |s| s.chars().count()).max(1);
+        out.push_str(&"^".repeat(carets));
+        out.push('\n');
+        for note in &self.notes {
+            out.push_str("note: ");
+            out.push_str(note);
+            out.push('\n');
+        }
+        out
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} (at byte {})", self.message, self.span.start)
+    }
+}
+
+impl std::error::Error for Diagnostic {}
+
+/// A human position in a source text: 1-based line and 1-based column (in characters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Position {
+    /// Line number, counting from 1.
+    pub line: usize,
+    /// Column in characters, counting from 1.
+    pub column: usize,
+    /// Byte offset of the start of the line.
+    pub line_start: usize,
+    /// Byte offset of the position within its line.
+    pub byte_in_line: usize,
+}
+
+impl Position {
+    /// The position of byte `offset` in `src` (clamped to the end, moved back to a character
+    /// boundary if needed).
+    pub fn of(src: &str, offset: usize) -> Position {
+        let mut offset = offset.min(src.len());
+        while !src.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let before = &src[..offset];
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        Position {
+            line: before.matches('\n').count() + 1,
+            column: src[line_start..offset].chars().count() + 1,
+            line_start,
+            byte_in_line: offset - line_start,
+        }
+    }
+
+    /// The text of the line holding this position, without its line ending.
+    pub fn line_text<'a>(&self, src: &'a str) -> &'a str {
+        let rest = &src[self.line_start..];
+        let line = rest.split('\n').next().unwrap_or("");
+        line.strip_suffix('\r').unwrap_or(line)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn renders_line_and_caret() {
+        let src = "udp {\n    port a35;\n}\n";
+        let d = Diagnostic::new(Span::new(15, 18), "expected a valid port number");
+        assert_eq!(
+            d.render("x.conf", src),
+            "x.conf:2:10: expected a valid port number\n    port a35;\n         ^^^\n"
+        );
+    }
+
+    #[test]
+    fn caret_follows_tabs_and_notes_follow_caret() {
+        let src = "\tfoo;";
+        let d = Diagnostic::new(Span::new(1, 1), "bad").with_note("try bar");
+        assert_eq!(
+            d.render("f", src),
+            "f:1:2: bad\n\tfoo;\n\t^\nnote: try bar\n"
+        );
+    }
+
+    #[test]
+    fn position_at_end_of_input() {
+        let src = "a\n";
+        let p = Position::of(src, 99);
+        assert_eq!((p.line, p.column), (2, 1));
+        let d = Diagnostic::new(Span::new(2, 2), "eof");
+        assert_eq!(d.render("f", src), "f:2:1: eof\n\n^\n");
+    }
+}

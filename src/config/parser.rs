@@ -1,0 +1,463 @@
+//! Recursive-descent parser: source text to [`Ast`], or the first syntax error.
+//!
+//! Error texts are the original mavtables' where it had one. Errors point at the
+//! offending token; an "expected X" whose token would be on a later line points just
+//! after the previous token instead (where the missing thing belongs).
+
+use super::ast::*;
+use super::diagnostic::{Diagnostic, Position};
+use super::lexer::{Cursor, is_word_char};
+use super::{Span, suggest};
+
+const TOP_LEVEL: &[&str] = &["default_action", "udp", "serial", "chain"];
+const UDP_STATEMENTS: &[&str] = &["port", "address", "max_bitrate"];
+const SERIAL_STATEMENTS: &[&str] = &["device", "baudrate", "flow_control", "preload"];
+const ACTIONS: &[&str] = &["accept", "reject", "call", "goto"];
+
+const EXPECTED_SEMICOLON: &str = "expected end of statement ';' character";
+const INVALID_SUBNET: &str = "expected a valid MAVLink subnet";
+const INVALID_ADDRESS: &str = "expected a valid MAVLink address";
+const INVALID_CONDITION: &str = "condition is empty or invalid";
+
+/// Parses a whole configuration file (syntax only; meaning is checked by
+/// [`super::semantics`]).
+pub fn parse(src: &str) -> std::result::Result<Ast<'_>, Diagnostic> {
+    let mut p = Parser {
+        src,
+        c: Cursor::new(src),
+    };
+    let items = p.file()?;
+    Ok(Ast { src, items })
+}
+
+type Result<T> = std::result::Result<T, Diagnostic>;
+
+struct Parser<'a> {
+    src: &'a str,
+    c: Cursor<'a>,
+}
+
+impl<'a> Parser<'a> {
+    fn file(&mut self) -> Result<Vec<Item>> {
+        let mut items = Vec::new();
+        self.c.skip_padding();
+        if self.c.at_end() {
+            return Err(Diagnostic::new(
+                Span::new(0, 0),
+                "expected at least one valid statement or block",
+            ));
+        }
+        while !self.c.at_end() {
+            items.push(self.item()?);
+            self.c.skip_padding();
+        }
+        Ok(items)
+    }
+
+    fn item(&mut self) -> Result<Item> {
+        let (span, word) = match self.c.peek_word() {
+            Some((span, word)) if starts_like_name(word) => (span, word),
+            _ => return Err(self.stray("a statement or block")),
+        };
+        match word {
+            "default_action" => {
+                self.c.word();
+                let at = self.c.expected_at();
+                let (value, accept) = match self.c.peek_word() {
+                    Some((s, "accept")) => (s, true),
+                    Some((s, "reject")) => (s, false),
+                    _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
+                };
+                self.c.word();
+                self.semicolon(false)?;
+                Ok(Item::DefaultAction {
+                    keyword: span,
+                    value,
+                    accept,
+                })
+            }
+            "udp" => {
+                self.c.word();
+                let settings = self.block(span, Self::udp_setting)?;
+                Ok(Item::Udp {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "serial" => {
+                self.c.word();
+                let settings = self.block(span, Self::serial_setting)?;
+                Ok(Item::Serial {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "chain" => {
+                self.c.word();
+                let name = self.chain_name()?;
+                let rules = self.block(span, Self::rule)?;
+                Ok(Item::Chain { name, rules })
+            }
+            _ => Err(unsupported(span, word, TOP_LEVEL)),
+        }
+    }
+
+    /// `{ element* }` where each element is read by `element`.
+    fn block<T>(&mut self, keyword: Span, element: fn(&mut Self) -> Result<T>) -> Result<Vec<T>> {
+        let at = self.c.expected_at();
+        if !self.c.eat('{') {
+            return Err(self.value_error(at, "expected opening brace '{'"));
+        }
+        let mut out = Vec::new();
+        loop {
+            let at = self.c.expected_at();
+            if self.c.eat('}') {
+                return Ok(out);
+            }
+            if self.c.at_end() {
+                let line = Position::of(self.src, keyword.start).line;
+                return Err(Diagnostic::new(at, "expected closing brace '}'")
+                    .with_note(format!("the block starts at line {line}")));
+            }
+            out.push(element(self)?);
+        }
+    }
+
+    fn udp_setting(&mut self) -> Result<UdpSetting> {
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "port" => {
+                self.c.word();
+                UdpSetting::Port(self.number("expected a valid port number")?)
+            }
+            "address" => {
+                self.c.word();
+                self.ipv4()?
+            }
+            "max_bitrate" => {
+                self.c.word();
+                UdpSetting::MaxBitrate(self.number("expected a valid bitrate")?)
+            }
+            _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    fn serial_setting(&mut self) -> Result<SerialSetting> {
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "device" => {
+                self.c.word();
+                let at = self.c.expected_at();
+                let path = self
+                    .c
+                    .take_while(|c| !c.is_whitespace() && !matches!(c, ';' | '#' | '{' | '}'));
+                if path.is_empty() {
+                    return Err(self.value_error(at, "expected a valid serial port device name"));
+                }
+                SerialSetting::Device(path)
+            }
+            "baudrate" => {
+                self.c.word();
+                SerialSetting::Baudrate(self.number("expected a valid baud rate")?)
+            }
+            "flow_control" => {
+                self.c.word();
+                let at = self.c.expected_at();
+                let enabled = match self.c.peek_word() {
+                    Some((_, "yes")) => true,
+                    Some((_, "no")) => false,
+                    _ => return Err(self.value_error(at, "expected 'yes' or 'no'")),
+                };
+                let (span, _) = self.c.word().unwrap_or((at, ""));
+                SerialSetting::FlowControl { span, enabled }
+            }
+            "preload" => {
+                self.c.word();
+                self.c.skip_padding();
+                SerialSetting::Preload(self.address(INVALID_ADDRESS)?)
+            }
+            _ => return Err(unsupported(span, word, SERIAL_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    fn rule(&mut self) -> Result<Rule> {
+        let (keyword, word) = match self.c.peek_word() {
+            Some((span, w)) if ACTIONS.contains(&w) => (span, w),
+            Some((span, w)) => {
+                let mut d = Diagnostic::new(span, "expected a valid rule");
+                if let Some(note) = suggest::did_you_mean(w, ACTIONS.iter().copied()) {
+                    d = d.with_note(note);
+                }
+                return Err(d);
+            }
+            None => return Err(Diagnostic::new(self.c.char_span(), "expected a valid rule")),
+        };
+        self.c.word();
+        let action = match word {
+            "accept" => ActionAst::Accept,
+            "reject" => ActionAst::Reject,
+            "call" => ActionAst::Call(self.chain_name()?),
+            _ => ActionAst::Goto(self.chain_name()?),
+        };
+        self.c.skip_padding();
+        let priority = match self.c.eat_keyword("with") {
+            Some(_) => Some(self.priority()?),
+            None => None,
+        };
+        self.c.skip_padding();
+        let condition = match self.c.eat_keyword("if") {
+            Some(kw) => Some(self.condition(kw)?),
+            None => None,
+        };
+        self.semicolon(true)?;
+        Ok(Rule {
+            keyword,
+            action,
+            priority,
+            condition,
+        })
+    }
+
+    fn priority(&mut self) -> Result<Span> {
+        let at = self.c.expected_at();
+        if self.c.eat_keyword("priority").is_none() {
+            return Err(self.value_error(
+                at,
+                "'with' keyword must be followed by the 'priority' keyword",
+            ));
+        }
+        let at = self.c.expected_at();
+        let start = self.c.pos();
+        let _ = self.c.eat('+') || self.c.eat('-');
+        let digits = self.c.digits();
+        if digits.is_empty() || self.c.peek().is_some_and(is_word_char) {
+            return Err(self.value_error(at, "expected priority level"));
+        }
+        Ok(Span::new(start, digits.end))
+    }
+
+    fn condition(&mut self, keyword: Span) -> Result<ConditionAst> {
+        let mut cond = ConditionAst {
+            keyword,
+            packet_type: None,
+            source: None,
+            dest: None,
+        };
+        let at = self.c.expected_at();
+        if let Some((span, word)) = self.c.peek_word()
+            && word != "from"
+            && word != "to"
+        {
+            if !word
+                .chars()
+                .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+            {
+                let mut d = Diagnostic::new(span, INVALID_CONDITION);
+                let upper = word.to_ascii_uppercase();
+                if crate::dialect::by_name(&upper).is_some() {
+                    d = d.with_note(format!(
+                        "message names are written in upper case: '{upper}'"
+                    ));
+                }
+                return Err(d);
+            }
+            self.c.word();
+            cond.packet_type = Some(span);
+        }
+        self.c.skip_padding();
+        if self.c.eat_keyword("from").is_some() {
+            self.c.skip_padding();
+            cond.source = Some(self.subnet()?);
+        }
+        self.c.skip_padding();
+        if self.c.eat_keyword("to").is_some() {
+            self.c.skip_padding();
+            cond.dest = Some(self.subnet()?);
+        }
+        if cond.packet_type.is_none() && cond.source.is_none() && cond.dest.is_none() {
+            return Err(self.value_error(at, INVALID_CONDITION));
+        }
+        Ok(cond)
+    }
+
+    /// `S.C`, `S.C:S.C`, `S.C/bits` or `S.C\bits`; the cursor is on the first digit.
+    fn subnet(&mut self) -> Result<SubnetAst> {
+        let start = self.c.pos();
+        let address = self.address(INVALID_SUBNET)?;
+        let mask = if self.c.eat(':') {
+            MaskAst::Explicit(self.address(INVALID_ADDRESS)?)
+        } else if self.c.eat('/') {
+            MaskAst::Slash(self.mask_bits()?)
+        } else if self.c.eat('\\') {
+            MaskAst::Backslash(self.mask_bits()?)
+        } else {
+            MaskAst::Exact
+        };
+        let end = self.c.pos();
+        if self.c.peek().is_some_and(is_word_char) {
+            return Err(Diagnostic::new(self.c.char_span(), INVALID_SUBNET));
+        }
+        Ok(SubnetAst {
+            span: Span::new(start, end),
+            address,
+            mask,
+        })
+    }
+
+    fn mask_bits(&mut self) -> Result<Span> {
+        let bits = self.c.digits();
+        if bits.is_empty() {
+            return Err(Diagnostic::new(self.c.char_span(), INVALID_SUBNET));
+        }
+        Ok(bits)
+    }
+
+    /// `S.C` at the cursor (no padding inside).
+    fn address(&mut self, message: &str) -> Result<AddressAst> {
+        let start = self.c.pos();
+        let system = self.c.digits();
+        if system.is_empty() {
+            let at = if self.c.at_end() || self.c.peek() == Some('\n') {
+                self.c.expected_at()
+            } else {
+                self.c.char_span()
+            };
+            return Err(self.value_error(at, message));
+        }
+        if !self.c.eat('.') {
+            return Err(Diagnostic::new(self.c.char_span(), message));
+        }
+        let component = self.c.digits();
+        if component.is_empty() {
+            return Err(Diagnostic::new(self.c.char_span(), message));
+        }
+        Ok(AddressAst {
+            span: Span::new(start, component.end),
+            system,
+            component,
+        })
+    }
+
+    fn ipv4(&mut self) -> Result<UdpSetting> {
+        const MESSAGE: &str = "expected a valid IP address";
+        let at = self.c.expected_at();
+        let start = self.c.pos();
+        let mut octets = [Span::new(0, 0); 4];
+        for (i, octet) in octets.iter_mut().enumerate() {
+            if i > 0 && !self.c.eat('.') {
+                return Err(Diagnostic::new(self.c.char_span(), MESSAGE));
+            }
+            *octet = self.c.digits();
+            if octet.is_empty() {
+                return Err(if i == 0 {
+                    self.value_error(at, MESSAGE)
+                } else {
+                    Diagnostic::new(self.c.char_span(), MESSAGE)
+                });
+            }
+        }
+        Ok(UdpSetting::Address {
+            span: Span::new(start, octets[3].end),
+            octets,
+        })
+    }
+
+    /// An unsigned number written as a whole word of digits.
+    fn number(&mut self, message: &str) -> Result<Span> {
+        let at = self.c.expected_at();
+        match self.c.peek_word() {
+            Some((span, w)) if w.bytes().all(|b| b.is_ascii_digit()) => {
+                self.c.word();
+                Ok(span)
+            }
+            _ => Err(self.value_error(at, message)),
+        }
+    }
+
+    fn chain_name(&mut self) -> Result<Span> {
+        let at = self.c.expected_at();
+        match self.c.peek_word() {
+            Some((span, w)) if starts_like_name(w) => {
+                self.c.word();
+                Ok(span)
+            }
+            _ => Err(self.value_error(at, "expected a valid chain name")),
+        }
+    }
+
+    fn semicolon(&mut self, in_rule: bool) -> Result<()> {
+        let at = self.c.expected_at();
+        if self.c.eat(';') {
+            return Ok(());
+        }
+        let mut d = self.value_error(at, EXPECTED_SEMICOLON);
+        if in_rule
+            && let Some((_, w)) = self.c.peek_word()
+            && matches!(w, "with" | "if" | "from" | "to")
+        {
+            d = d.with_note(
+                "a rule is written: ACTION [with priority N] [if [TYPE] [from SUBNET] [to SUBNET]];",
+            );
+        }
+        Err(d)
+    }
+
+    /// An error at `at`, widened to the whole word when `at` is the start of one.
+    fn value_error(&self, at: Span, message: &str) -> Diagnostic {
+        let mut span = at;
+        if !at.is_empty()
+            && at.start == self.c.pos()
+            && let Some((word, _)) = self.c.peek_word()
+        {
+            span = word;
+        }
+        Diagnostic::new(span, message)
+    }
+
+    /// Text that cannot start anything here.
+    fn stray(&self, expected: &str) -> Diagnostic {
+        let (span, shown) = match self.c.peek_word() {
+            Some((span, w)) => (span, w.to_string()),
+            None => {
+                let span = self.c.char_span();
+                let shown = self
+                    .c
+                    .peek()
+                    .map_or(String::new(), |c| c.escape_debug().to_string());
+                (span, shown)
+            }
+        };
+        Diagnostic::new(span, format!("expected {expected}, found '{shown}'"))
+    }
+}
+
+/// Names (chain names, statement keywords) start with a letter or `_`.
+fn starts_like_name(word: &str) -> bool {
+    word.chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+}
+
+fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
+    let mut d = Diagnostic::new(span, "unsupported statement");
+    if let Some(note) = suggest::did_you_mean(word, candidates.iter().copied()) {
+        d = d.with_note(note);
+    } else {
+        for (block, list) in [("udp", UDP_STATEMENTS), ("serial", SERIAL_STATEMENTS)] {
+            if list.contains(&word) && candidates != list {
+                d = d.with_note(format!("'{word}' belongs in a '{block}' block"));
+            }
+        }
+    }
+    d
+}

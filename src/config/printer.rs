@@ -1,0 +1,142 @@
+//! The `--ast` output: the original mavtables' syntax tree format, byte for byte.
+//!
+//! ```text
+//! ===== path =====
+//! :001:  chain default
+//! :002:  |  accept
+//! :002:  |  |  priority 99
+//! ```
+//! Each node line is `:NNN:  ` (line of the node's own text, zero-padded to three digits),
+//! then `|  ` once per nesting level, the node name, and ` <raw text>` for nodes with text.
+
+use super::Span;
+use super::ast::*;
+use std::fmt::Write;
+
+/// Renders the header line and the tree of `ast`, read from `path`.
+pub fn print_ast(ast: &Ast<'_>, path: &str) -> String {
+    let mut p = Printer {
+        ast,
+        lines: LineIndex::new(ast.src),
+        out: format!("===== {path} =====\n"),
+    };
+    for item in &ast.items {
+        p.item(item);
+    }
+    p.out
+}
+
+/// Renders only the tree (no header), as the original's unit tests compare it.
+pub fn print_tree(ast: &Ast<'_>) -> String {
+    let full = print_ast(ast, "");
+    full.split_once('\n')
+        .map_or(String::new(), |(_, rest)| rest.to_string())
+}
+
+struct Printer<'a, 'b> {
+    ast: &'b Ast<'a>,
+    lines: LineIndex,
+    out: String,
+}
+
+impl Printer<'_, '_> {
+    fn node(&mut self, depth: usize, at: Span, name: &str, text: Option<Span>) {
+        let line = self.lines.line_of(at.start);
+        let _ = write!(self.out, ":{line:03}:  ");
+        for _ in 0..depth {
+            self.out.push_str("|  ");
+        }
+        self.out.push_str(name);
+        if let Some(text) = text {
+            self.out.push(' ');
+            self.out.push_str(self.ast.text(text));
+        }
+        self.out.push('\n');
+    }
+
+    fn item(&mut self, item: &Item) {
+        match item {
+            Item::DefaultAction {
+                keyword,
+                value,
+                accept,
+            } => {
+                self.node(0, *keyword, "default_action", None);
+                self.node(1, *value, if *accept { "accept" } else { "reject" }, None);
+            }
+            Item::Udp { keyword, settings } => {
+                self.node(0, *keyword, "udp", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        UdpSetting::Port(v) => ("port", *v),
+                        UdpSetting::Address { span, .. } => ("address", *span),
+                        UdpSetting::MaxBitrate(v) => ("max_bitrate", *v),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
+            Item::Serial { keyword, settings } => {
+                self.node(0, *keyword, "serial", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        SerialSetting::Device(v) => ("device", *v),
+                        SerialSetting::Baudrate(v) => ("baudrate", *v),
+                        SerialSetting::FlowControl { span, .. } => ("flow_control", *span),
+                        SerialSetting::Preload(a) => ("preload", a.span),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
+            Item::Chain { name, rules } => {
+                self.node(0, *name, "chain", Some(*name));
+                for rule in rules {
+                    self.rule(rule);
+                }
+            }
+        }
+    }
+
+    fn rule(&mut self, rule: &Rule) {
+        match rule.action {
+            ActionAst::Accept => self.node(1, rule.keyword, "accept", None),
+            ActionAst::Reject => self.node(1, rule.keyword, "reject", None),
+            ActionAst::Call(target) => self.node(1, target, "call", Some(target)),
+            ActionAst::Goto(target) => self.node(1, target, "goto", Some(target)),
+        }
+        if let Some(p) = rule.priority {
+            self.node(2, p, "priority", Some(p));
+        }
+        if let Some(c) = &rule.condition {
+            self.node(2, c.keyword, "condition", None);
+            if let Some(t) = c.packet_type {
+                self.node(3, t, "packet_type", Some(t));
+            }
+            if let Some(s) = &c.source {
+                self.node(3, s.span, "source", Some(s.span));
+            }
+            if let Some(d) = &c.dest {
+                self.node(3, d.span, "dest", Some(d.span));
+            }
+        }
+    }
+}
+
+/// Maps byte offsets to 1-based line numbers.
+struct LineIndex {
+    starts: Vec<usize>,
+}
+
+impl LineIndex {
+    fn new(src: &str) -> Self {
+        let mut starts = vec![0];
+        starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
+        LineIndex { starts }
+    }
+
+    fn line_of(&self, offset: usize) -> usize {
+        match self.starts.binary_search(&offset) {
+            Ok(i) => i + 1,
+            Err(i) => i,
+        }
+    }
+}

@@ -1,0 +1,486 @@
+//! From syntax tree to [`Config`]: resolves chain and message names, checks every number's
+//! range, fills in defaults and rejects `call`/`goto` cycles. Collects every error it
+//! finds (in file order) rather than stopping at the first.
+
+use super::ast::{
+    self, ActionAst, AddressAst, Ast, Item, MaskAst, SerialSetting, SubnetAst, UdpSetting,
+};
+use super::diagnostic::{Diagnostic, Position};
+use super::model::*;
+use super::{Span, suggest};
+use crate::address::{Address, Subnet};
+use crate::dialect;
+use std::collections::HashMap;
+use std::net::Ipv4Addr;
+
+/// A valid configuration plus the warnings found while checking it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Loaded {
+    /// The configuration.
+    pub config: Config,
+    /// Things that are allowed but probably not meant (one line each).
+    pub warnings: Vec<String>,
+}
+
+/// Checks `ast` and builds the configuration, or returns every error found.
+pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
+    let mut cx = Checker {
+        ast,
+        errors: Vec::new(),
+        ids: HashMap::new(),
+        names: Vec::new(),
+        edges: Vec::new(),
+    };
+    cx.register_chains();
+    let mut default_action = DefaultAction::Reject;
+    let mut interfaces = Vec::new();
+    let mut chains: Vec<Chain> = cx
+        .names
+        .iter()
+        .map(|(n, _)| Chain {
+            name: n.to_string(),
+            rules: Vec::new(),
+        })
+        .collect();
+    for item in &ast.items {
+        match item {
+            Item::DefaultAction { accept, .. } => {
+                default_action = if *accept {
+                    DefaultAction::Accept
+                } else {
+                    DefaultAction::Reject
+                };
+            }
+            Item::Udp { settings, .. } => {
+                if let Some(udp) = cx.udp(settings) {
+                    interfaces.push(Interface::Udp(udp));
+                }
+            }
+            Item::Serial { keyword, settings } => {
+                if let Some(serial) = cx.serial(*keyword, settings) {
+                    interfaces.push(Interface::Serial(serial));
+                }
+            }
+            Item::Chain { name, rules } => {
+                let id = cx.ids[ast.text(*name)];
+                for rule in rules {
+                    if let Some(rule) = cx.rule(id, rule) {
+                        chains[id.0].rules.push(rule);
+                    }
+                }
+            }
+        }
+    }
+    let mut warnings = Vec::new();
+    let default_chain = match cx.ids.get("default") {
+        Some(id) => *id,
+        None => {
+            let action = match default_action {
+                DefaultAction::Accept => "accept",
+                DefaultAction::Reject => "reject",
+            };
+            warnings.push(format!(
+                "no 'default' chain is defined, so every packet gets the default action ({action})"
+            ));
+            chains.push(Chain {
+                name: "default".to_string(),
+                rules: Vec::new(),
+            });
+            ChainId(chains.len() - 1)
+        }
+    };
+    cx.find_cycles();
+    if !cx.errors.is_empty() {
+        return Err(cx.errors);
+    }
+    Ok(Loaded {
+        config: Config {
+            default_action,
+            interfaces,
+            chains,
+            default_chain,
+        },
+        warnings,
+    })
+}
+
+/// A `call`/`goto` reference from one chain to another.
+struct Edge {
+    from: ChainId,
+    to: ChainId,
+    at: Span,
+    goto: bool,
+}
+
+struct Checker<'a, 'b> {
+    ast: &'b Ast<'a>,
+    errors: Vec<Diagnostic>,
+    ids: HashMap<&'a str, ChainId>,
+    names: Vec<(&'a str, Span)>,
+    edges: Vec<Edge>,
+}
+
+impl<'a> Checker<'a, '_> {
+    fn text(&self, span: Span) -> &'a str {
+        self.ast.text(span)
+    }
+
+    fn error(&mut self, d: Diagnostic) {
+        self.errors.push(d);
+    }
+
+    fn line(&self, span: Span) -> usize {
+        Position::of(self.ast.src, span.start).line
+    }
+
+    /// Every chain name first, so chains can be used before their definition.
+    fn register_chains(&mut self) {
+        for item in &self.ast.items {
+            if let Item::Chain { name, .. } = item {
+                let text = self.text(*name);
+                if !self.ids.contains_key(text) {
+                    self.ids.insert(text, ChainId(self.names.len()));
+                    self.names.push((text, *name));
+                }
+            }
+        }
+    }
+
+    fn udp(&mut self, settings: &[UdpSetting]) -> Option<UdpInterface> {
+        let mut udp = UdpInterface::default();
+        let mut ok = true;
+        for s in settings {
+            match s {
+                UdpSetting::Port(v) => match self.unsigned(*v, 0, u16::MAX.into(), "port number") {
+                    Some(p) => udp.port = p as u16,
+                    None => ok = false,
+                },
+                UdpSetting::Address { octets, .. } => {
+                    let mut bytes = [0u8; 4];
+                    for (b, span) in bytes.iter_mut().zip(octets) {
+                        let text = self.text(*span);
+                        match text.parse::<u8>() {
+                            Ok(v) => *b = v,
+                            Err(_) => {
+                                ok = false;
+                                self.error(Diagnostic::new(
+                                    *span,
+                                    format!("Address octet ({text}) is outside of the allowed range (0 - 255)."),
+                                ));
+                            }
+                        }
+                    }
+                    udp.address = Ipv4Addr::from(bytes);
+                }
+                UdpSetting::MaxBitrate(v) => match self.unsigned(*v, 0, u64::MAX, "bitrate") {
+                    Some(b) => udp.max_bitrate = (b > 0).then_some(b),
+                    None => ok = false,
+                },
+            }
+        }
+        ok.then_some(udp)
+    }
+
+    fn serial(&mut self, keyword: Span, settings: &[SerialSetting]) -> Option<SerialInterface> {
+        let mut device = None;
+        let mut serial = SerialInterface {
+            device: String::new(),
+            baudrate: 9600,
+            flow_control: false,
+            preload: Vec::new(),
+        };
+        let mut ok = true;
+        for s in settings {
+            match s {
+                SerialSetting::Device(v) => device = Some(self.text(*v).to_string()),
+                SerialSetting::Baudrate(v) => {
+                    match self.unsigned(*v, 1, u32::MAX.into(), "baud rate") {
+                        Some(b) => serial.baudrate = b as u32,
+                        None => ok = false,
+                    }
+                }
+                SerialSetting::FlowControl { enabled, .. } => serial.flow_control = *enabled,
+                SerialSetting::Preload(a) => match self.address(a) {
+                    Some(a) => serial.preload.push(a),
+                    None => ok = false,
+                },
+            }
+        }
+        match device {
+            Some(d) => serial.device = d,
+            None => {
+                self.error(Diagnostic::new(keyword, "missing device string").with_note(
+                    "a serial block needs a 'device' statement, e.g. 'device /dev/ttyUSB0;'",
+                ));
+                ok = false;
+            }
+        }
+        ok.then_some(serial)
+    }
+
+    /// A decimal number within `min..=max`, or an error naming `what`.
+    fn unsigned(&mut self, span: Span, min: u64, max: u64, what: &str) -> Option<u64> {
+        let text = self.text(span);
+        match text.parse::<u64>() {
+            Ok(v) if (min..=max).contains(&v) => Some(v),
+            _ => {
+                self.error(Diagnostic::new(
+                    span,
+                    format!("{what} ({text}) is outside of the allowed range ({min} - {max})"),
+                ));
+                None
+            }
+        }
+    }
+
+    /// One part of a MAVLink address (0..=255), named `System` or `Component`.
+    fn id_part(&mut self, span: Span, what: &str) -> Option<u8> {
+        let text = self.text(span);
+        match text.parse::<u8>() {
+            Ok(v) => Some(v),
+            Err(_) => {
+                self.error(Diagnostic::new(
+                    span,
+                    format!("{what} ID ({text}) is outside of the allowed range (0 - 255)."),
+                ));
+                None
+            }
+        }
+    }
+
+    fn address(&mut self, a: &AddressAst) -> Option<Address> {
+        let system = self.id_part(a.system, "System");
+        let component = self.id_part(a.component, "Component");
+        Some(Address::new(system?, component?))
+    }
+
+    fn subnet(&mut self, s: &SubnetAst) -> Option<Subnet> {
+        let address = self.address(&s.address);
+        match s.mask {
+            MaskAst::Exact => Some(Subnet::exact(address?)),
+            MaskAst::Explicit(mask) => {
+                let mask = self.address(&mask);
+                Some(Subnet::new(address?, mask?))
+            }
+            MaskAst::Slash(bits) => {
+                let text = self.text(bits);
+                match text.parse::<u8>().ok().filter(|b| *b <= 16) {
+                    Some(b) => Subnet::with_prefix(address?, b),
+                    None => {
+                        self.error(Diagnostic::new(
+                            bits,
+                            format!(
+                                "Forward slash mask ({text}) is outside of allowed range (0 - 16)."
+                            ),
+                        ));
+                        None
+                    }
+                }
+            }
+            MaskAst::Backslash(bits) => {
+                let text = self.text(bits);
+                match text.parse::<u8>().ok().filter(|b| *b <= 8) {
+                    Some(b) => Subnet::with_component_prefix(address?, b),
+                    None => {
+                        self.error(Diagnostic::new(
+                            bits,
+                            format!("Backslash mask ({text}) is outside of allowed range (0 - 8)."),
+                        ));
+                        None
+                    }
+                }
+            }
+        }
+    }
+
+    fn rule(&mut self, chain: ChainId, rule: &ast::Rule) -> Option<Rule> {
+        let action = match rule.action {
+            ActionAst::Accept => Some(Action::Accept),
+            ActionAst::Reject => Some(Action::Reject),
+            ActionAst::Call(target) => self.target(chain, target, false).map(Action::Call),
+            ActionAst::Goto(target) => self.target(chain, target, true).map(Action::Goto),
+        };
+        let priority = match rule.priority {
+            None => Some(None),
+            Some(span) => {
+                let text = self.text(span);
+                match text.parse::<i64>().ok().and_then(|v| i32::try_from(v).ok()) {
+                    Some(p) => Some(Some(p)),
+                    None => {
+                        self.error(Diagnostic::new(
+                            span,
+                            format!(
+                                "priority level ({text}) is outside of the allowed range ({} - {})",
+                                i32::MIN,
+                                i32::MAX
+                            ),
+                        ));
+                        None
+                    }
+                }
+            }
+        };
+        let condition = match &rule.condition {
+            None => Some(Condition::default()),
+            Some(c) => self.condition(c),
+        };
+        let action = action?;
+        let priority = if action == Action::Reject {
+            None
+        } else {
+            priority?
+        };
+        Some(Rule {
+            action,
+            priority,
+            condition: condition?,
+        })
+    }
+
+    fn target(&mut self, from: ChainId, target: Span, goto: bool) -> Option<ChainId> {
+        let name = self.text(target);
+        let verb = if goto { "goto" } else { "call" };
+        if name == "default" {
+            self.error(Diagnostic::new(
+                target,
+                format!("cannot '{verb}' the default chain"),
+            ));
+            return None;
+        }
+        match self.ids.get(name) {
+            Some(id) => {
+                self.edges.push(Edge {
+                    from,
+                    to: *id,
+                    at: target,
+                    goto,
+                });
+                Some(*id)
+            }
+            None => {
+                let mut d = Diagnostic::new(target, format!("chain '{name}' is not defined"));
+                let names: Vec<&str> = self.names.iter().map(|(n, _)| *n).collect();
+                if let Some(note) = suggest::did_you_mean(name, names) {
+                    d = d.with_note(note);
+                }
+                self.error(d);
+                None
+            }
+        }
+    }
+
+    fn condition(&mut self, c: &ast::ConditionAst) -> Option<Condition> {
+        let message_id = match c.packet_type {
+            None => Some(None),
+            Some(span) => {
+                let name = self.text(span);
+                match dialect::by_name(name) {
+                    Some(info) => Some(Some(info.id)),
+                    None => {
+                        let mut d =
+                            Diagnostic::new(span, format!("Invalid packet name (\"{name}\")."));
+                        if let Some(note) =
+                            suggest::did_you_mean(name, dialect::messages().iter().map(|m| m.name))
+                        {
+                            d = d.with_note(note);
+                        }
+                        self.error(d);
+                        None
+                    }
+                }
+            }
+        };
+        let source = match &c.source {
+            None => Some(None),
+            Some(s) => self.subnet(s).map(Some),
+        };
+        let dest = match &c.dest {
+            None => Some(None),
+            Some(s) => self.subnet(s).map(Some),
+        };
+        Some(Condition {
+            message_id: message_id?,
+            source: source?,
+            dest: dest?,
+        })
+    }
+
+    /// Reports every `call`/`goto` loop (found by an iterative depth-first search, so a
+    /// long chain of chains cannot overflow the stack).
+    fn find_cycles(&mut self) {
+        let n = self.names.len();
+        let mut out: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, e) in self.edges.iter().enumerate() {
+            out[e.from.0].push(i);
+        }
+        #[derive(Clone, Copy, PartialEq)]
+        enum State {
+            New,
+            Open,
+            Done,
+        }
+        let mut state = vec![State::New; n];
+        let mut found: Vec<Vec<usize>> = Vec::new();
+        for root in 0..n {
+            if state[root] != State::New {
+                continue;
+            }
+            // (chain, next outgoing edge to look at); path[i] leads from stack[i] to stack[i+1].
+            let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+            let mut path: Vec<usize> = Vec::new();
+            state[root] = State::Open;
+            while let Some(top) = stack.last_mut() {
+                let node = top.0;
+                if let Some(&edge) = out[node].get(top.1) {
+                    top.1 += 1;
+                    let to = self.edges[edge].to.0;
+                    match state[to] {
+                        State::New => {
+                            state[to] = State::Open;
+                            stack.push((to, 0));
+                            path.push(edge);
+                        }
+                        State::Open => {
+                            let k = stack.iter().position(|(c, _)| *c == to).unwrap_or(0);
+                            let mut cycle = path[k..].to_vec();
+                            cycle.push(edge);
+                            found.push(cycle);
+                        }
+                        State::Done => {}
+                    }
+                } else {
+                    state[node] = State::Done;
+                    stack.pop();
+                    path.pop();
+                }
+            }
+        }
+        for cycle in found {
+            self.report_cycle(&cycle);
+        }
+    }
+
+    fn report_cycle(&mut self, cycle: &[usize]) {
+        let Some(&first) = cycle.first() else { return };
+        let mut names = vec![self.names[self.edges[first].from.0].0];
+        let mut notes = Vec::new();
+        for &i in cycle {
+            let e = &self.edges[i];
+            let (from, to) = (self.names[e.from.0].0, self.names[e.to.0].0);
+            names.push(to);
+            let verb = if e.goto { "goes to" } else { "calls" };
+            notes.push(format!(
+                "line {}: chain '{from}' {verb} '{to}'",
+                self.line(e.at)
+            ));
+        }
+        let mut d = Diagnostic::new(
+            self.edges[first].at,
+            format!("call/goto cycle: {}", names.join(" -> ")),
+        );
+        for note in notes {
+            d = d.with_note(note);
+        }
+        self.error(d);
+    }
+}

@@ -1,0 +1,273 @@
+//! The real binary: options, exit codes, config search, --ast, --check and error output.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_mavtables");
+
+/// A fresh empty directory under the target dir, named after the test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("cli-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// Runs the binary in `dir` with a clean environment (HOME pointing into `dir`).
+fn run_in(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(BIN);
+    cmd.args(args)
+        .current_dir(dir)
+        .env_clear()
+        .env("HOME", dir.join("home"));
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run mavtables")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn repo(path: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(path)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn help_and_version() {
+    let dir = scratch("help");
+    for args in [
+        &["-h"][..],
+        &["--help"],
+        &["--he"],
+        &["--config", "nope", "--help"],
+    ] {
+        let out = run_in(&dir, args, &[]);
+        assert_eq!(out.status.code(), Some(0));
+        let stdout = text(&out.stdout);
+        assert!(
+            stdout.starts_with(&format!("usage: {BIN}:\n  -h [ --help ]  ")),
+            "{stdout}"
+        );
+        for opt in [
+            "--config arg",
+            "--ast",
+            "--check",
+            "--version",
+            "--loglevel arg",
+        ] {
+            assert!(stdout.contains(&format!("\n  {opt} ")), "{opt} missing");
+        }
+        assert!(stdout.ends_with("\n\n"));
+    }
+    let out = run_in(&dir, &["--ver"], &[]);
+    assert_eq!(out.status.code(), Some(0));
+    let v = text(&out.stdout);
+    assert!(v.starts_with(&format!("mavtables {}\n", env!("CARGO_PKG_VERSION"))));
+    assert!(v.contains("GPL-2.0-or-later"));
+    assert!(!v.contains("Copyright"));
+}
+
+#[test]
+fn option_errors_exit_1_with_the_original_texts() {
+    let dir = scratch("opterr");
+    let cases: [(&[&str], &str); 5] = [
+        (&["--foo"], "error: unrecognised option '--foo'\n"),
+        (
+            &["--loglevel", "abc"],
+            "error: the argument ('abc') for option '--loglevel' is invalid\n",
+        ),
+        (
+            &["--config"],
+            "error: the required argument for option '--config' is missing\n",
+        ),
+        (
+            &["--config", "a", "--conf=b"],
+            "error: option '--config' cannot be specified more than once\n",
+        ),
+        (
+            &["--config", "missing.conf"],
+            "error: mavtables could not locate a configuration file\n",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = run_in(&dir, args, &[]);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        assert_eq!(text(&out.stderr), want, "{args:?}");
+        assert!(out.stdout.is_empty());
+    }
+}
+
+#[test]
+fn check_the_example_config() {
+    let out = run_in(
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+        &["--check", "--config", "examples/mavtables.conf"],
+        &[],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "examples/mavtables.conf: configuration is valid\n"
+    );
+    assert!(out.stderr.is_empty());
+}
+
+#[test]
+fn the_example_configs_commented_sketch_is_valid_too() {
+    let src = std::fs::read_to_string(repo("examples/mavtables.conf")).expect("example");
+    let sketch: String = src
+        .lines()
+        .skip_while(|l| !l.starts_with("# A sketch"))
+        .skip(1)
+        .map(|l| l.strip_prefix("# ").or(l.strip_prefix("#")).unwrap_or(l))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(sketch.contains("chain from_vehicle"));
+    if let Err(e) = mavtables::config::load(&sketch) {
+        panic!(
+            "{}",
+            mavtables::config::render_errors("sketch", &sketch, &e)
+        );
+    }
+}
+
+#[test]
+fn check_reports_located_errors_and_warnings() {
+    let dir = scratch("check");
+    std::fs::write(
+        dir.join("bad.conf"),
+        "chain default {\n    accept if PIN;\n}\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--check", "--conf", "bad.conf"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.starts_with("bad.conf:2:15: Invalid packet name (\"PIN\").\n    accept if PIN;\n              ^^^\nnote: did you mean"),
+        "{err}"
+    );
+    assert!(err.contains("'PING'"), "{err}");
+    assert!(out.stdout.is_empty());
+
+    std::fs::write(dir.join("nodefault.conf"), "udp { port 14550; }\n").expect("write");
+    let out = run_in(&dir, &["--check", "--config=nodefault.conf"], &[]);
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(
+        text(&out.stderr),
+        "warning: nodefault.conf: no 'default' chain is defined, so every packet gets the default action (reject)\n"
+    );
+}
+
+#[test]
+fn ast_prints_header_and_tree_and_skips_semantics() {
+    let dir = scratch("ast");
+    std::fs::write(
+        dir.join("a.conf"),
+        "default_action accept;\nchain default {\n    call x if NOPE;\n}\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--ast", "--config", "a.conf"], &[]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "===== a.conf =====\n:001:  default_action\n:001:  |  accept\n:002:  chain default\n\
+         :003:  |  call x\n:003:  |  |  condition\n:003:  |  |  |  packet_type NOPE\n"
+    );
+    std::fs::write(dir.join("b.conf"), "udp {\n    port 14500\n}\n").expect("write");
+    let out = run_in(&dir, &["--ast", "--config", "b.conf"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(out.stdout.is_empty());
+    assert_eq!(
+        text(&out.stderr),
+        "b.conf:2:15: expected end of statement ';' character\n    port 14500\n              ^\n"
+    );
+}
+
+#[test]
+fn golden_ast_through_the_binary() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = run_in(
+        root,
+        &["--ast", "--config", "tests/data/config/everything.conf"],
+        &[],
+    );
+    assert_eq!(out.status.code(), Some(0));
+    let want =
+        std::fs::read_to_string(root.join("tests/data/config/everything.ast")).expect("golden");
+    assert_eq!(text(&out.stdout), want);
+}
+
+#[test]
+fn config_search_order() {
+    let dir = scratch("search");
+    std::fs::create_dir_all(dir.join("home")).expect("home");
+    let conf = |name: &str, port: u16| {
+        std::fs::write(
+            dir.join(name),
+            format!("udp {{ port {port}; }}\nchain default {{ accept; }}\n"),
+        )
+        .expect("write")
+    };
+    let ast_header = |env: &[(&str, &str)]| {
+        let out = run_in(&dir, &["--ast"], env);
+        (
+            out.status.code(),
+            text(&out.stdout)
+                .lines()
+                .next()
+                .unwrap_or_default()
+                .to_string(),
+        )
+    };
+    // Nothing anywhere (and /etc/mavtables.conf is not expected on a build machine).
+    if !Path::new("/etc/mavtables.conf").exists() {
+        let out = run_in(&dir, &["--check"], &[]);
+        assert_eq!(out.status.code(), Some(1));
+        assert_eq!(
+            text(&out.stderr),
+            "error: mavtables could not locate a configuration file\n"
+        );
+    }
+    conf("home/.mavtablesrc", 1);
+    let home_rc = format!("{}/.mavtablesrc", dir.join("home").display());
+    assert_eq!(ast_header(&[]), (Some(0), format!("===== {home_rc} =====")));
+    conf(".mavtablesrc", 2);
+    assert_eq!(
+        ast_header(&[]),
+        (Some(0), "===== ./.mavtablesrc =====".to_string())
+    );
+    conf("env.conf", 3);
+    let env_path = dir.join("env.conf").display().to_string();
+    assert_eq!(
+        ast_header(&[("MAVTABLES_CONFIG_PATH", &env_path)]),
+        (Some(0), format!("===== {env_path} ====="))
+    );
+    // A variable naming a missing file falls through to the next candidate.
+    assert_eq!(
+        ast_header(&[("MAVTABLES_CONFIG_PATH", "/nonexistent.conf")]),
+        (Some(0), "===== ./.mavtablesrc =====".to_string())
+    );
+    // --config wins, and a missing --config path is an error even if others exist.
+    let out = run_in(
+        &dir,
+        &["--ast", "--config", "home/.mavtablesrc"],
+        &[("MAVTABLES_CONFIG_PATH", &env_path)],
+    );
+    assert!(text(&out.stdout).starts_with("===== home/.mavtablesrc =====\n"));
+    let out = run_in(&dir, &["--ast", "--config", "nope"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+}
+
+#[test]
+fn running_loads_and_validates_first() {
+    let dir = scratch("run");
+    std::fs::write(dir.join("bad.conf"), "udp { port 65536; }\n").expect("write");
+    let out = run_in(&dir, &["--config", "bad.conf", "--loglevel", "9"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).starts_with("bad.conf:1:12: port number (65536) is outside"));
+}

@@ -1,0 +1,120 @@
+//! Property: any input gives either a configuration or located errors, never a panic, and
+//! every error position lies inside the input and renders.
+
+use mavtables::config::{self, parse, print_ast};
+use proptest::prelude::*;
+
+/// Pieces of the language, so random inputs get deep into the grammar.
+const PIECES: &[&str] = &[
+    "udp",
+    "serial",
+    "chain",
+    "default",
+    "default_action",
+    "accept",
+    "reject",
+    "call",
+    "goto",
+    "with",
+    "priority",
+    "if",
+    "from",
+    "to",
+    "port",
+    "address",
+    "max_bitrate",
+    "device",
+    "baudrate",
+    "flow_control",
+    "preload",
+    "yes",
+    "no",
+    "PING",
+    "HEARTBEAT",
+    "x",
+    "{",
+    "}",
+    ";",
+    " ",
+    "\n",
+    "\t",
+    "#",
+    ".",
+    ":",
+    "/",
+    "\\",
+    "-",
+    "+",
+    "0",
+    "1",
+    "255",
+    "256",
+    "14500",
+    "99999999999999999999999",
+    "1.1",
+    "127.0.0.1",
+    "é",
+    "\r\n",
+];
+
+fn check(src: &str) {
+    match config::load(src) {
+        Ok(loaded) => {
+            let c = loaded.config;
+            assert!(c.default_chain.0 < c.chains.len());
+            assert_eq!(c.chain(c.default_chain).name, "default");
+        }
+        Err(errors) => {
+            assert!(!errors.is_empty());
+            for e in &errors {
+                assert!(
+                    e.span.start <= src.len() && e.span.end <= src.len(),
+                    "{e:?}"
+                );
+                let rendered = e.render("p", src);
+                assert!(rendered.starts_with("p:"));
+            }
+        }
+    }
+    if let Ok(ast) = parse(src) {
+        assert!(print_ast(&ast, "p").starts_with("===== p =====\n"));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn arbitrary_text_never_panics(src in any::<String>()) {
+        check(&src);
+    }
+
+    #[test]
+    fn grammar_soup_never_panics(parts in prop::collection::vec(prop::sample::select(PIECES), 0..60)) {
+        let src: String = parts.concat();
+        check(&src);
+        let spaced = parts.join(" ");
+        check(&spaced);
+    }
+
+    #[test]
+    fn valid_rules_round_trip_through_the_ast(
+        action in prop::sample::select(&["accept", "reject", "call c", "goto c"][..]),
+        prio in prop::option::of(any::<i32>()),
+        ty in prop::option::of(prop::sample::select(&["PING", "HEARTBEAT", "GPS_STATUS"][..])),
+        from in prop::option::of((any::<u8>(), any::<u8>(), 0u8..=16)),
+        to in prop::option::of((any::<u8>(), any::<u8>(), 0u8..=8)),
+    ) {
+        let mut rule = action.to_string();
+        if let Some(p) = prio { rule += &format!(" with priority {p}"); }
+        if ty.is_some() || from.is_some() || to.is_some() {
+            rule += " if";
+            if let Some(t) = ty { rule += &format!(" {t}"); }
+            if let Some((s, c, b)) = from { rule += &format!(" from {s}.{c}/{b}"); }
+            if let Some((s, c, b)) = to { rule += &format!(" to {s}.{c}\\{b}"); }
+        }
+        let src = format!("chain default {{ {rule}; }}\nchain c {{ accept; }}");
+        let loaded = config::load(&src);
+        prop_assert!(loaded.is_ok(), "{src}");
+    }
+}
