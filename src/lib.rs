@@ -18,4 +18,5 @@ pub mod dialect;
 pub mod filter;
 pub mod io;
 pub mod routing;
+pub mod tools;
 pub mod wire;

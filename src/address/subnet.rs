@@ -67,6 +67,64 @@ impl Subnet {
     }
 }
 
+/// Why a subnet written on the command line could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SubnetParseError(pub String);
+
+impl fmt::Display for SubnetParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for SubnetParseError {}
+
+/// Parses `S.C` as two octets.
+fn octets(text: &str, whole: &str) -> Result<Address, SubnetParseError> {
+    let invalid = || SubnetParseError(format!("Invalid MAVLink subnet: \"{whole}\"."));
+    let (s, c) = text.split_once('.').ok_or_else(invalid)?;
+    let num = |t: &str| -> Result<u8, SubnetParseError> {
+        if t.is_empty() || !t.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(invalid());
+        }
+        t.parse::<u8>().map_err(|_| invalid())
+    };
+    Ok(Address::new(num(s)?, num(c)?))
+}
+
+/// The four written forms of the configuration language, for command-line options:
+/// `S.C`, `S.C:M.M`, `S.C/bits` (0–16) and `S.C\\bits` (0–8).
+impl std::str::FromStr for Subnet {
+    type Err = SubnetParseError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let bits = |b: &str, max: u8, kind: &str| -> Result<u8, SubnetParseError> {
+            match b.parse::<u8>() {
+                Ok(n) if n <= max && !b.is_empty() && b.bytes().all(|c| c.is_ascii_digit()) => {
+                    Ok(n)
+                }
+                _ => Err(SubnetParseError(format!(
+                    "{kind} mask ({b}) is outside of allowed range (0 - {max})."
+                ))),
+            }
+        };
+        if let Some((addr, mask)) = text.split_once(':') {
+            return Ok(Subnet::new(octets(addr, text)?, octets(mask, text)?));
+        }
+        if let Some((addr, b)) = text.split_once('/') {
+            let n = bits(b, 16, "Forward slash")?;
+            return Subnet::with_prefix(octets(addr, text)?, n)
+                .ok_or_else(|| SubnetParseError(format!("Invalid MAVLink subnet: \"{text}\".")));
+        }
+        if let Some((addr, b)) = text.split_once('\\') {
+            let n = bits(b, 8, "Backslash")?;
+            return Subnet::with_component_prefix(octets(addr, text)?, n)
+                .ok_or_else(|| SubnetParseError(format!("Invalid MAVLink subnet: \"{text}\".")));
+        }
+        Ok(Subnet::exact(octets(text, text)?))
+    }
+}
+
 impl fmt::Display for Subnet {
     /// Always the explicit form `S.C:M.M`, which round-trips through the config language.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -146,5 +204,23 @@ mod tests {
             Subnet::with_prefix(a(192, 0), 8).unwrap().to_string(),
             "192.0:255.0"
         );
+    }
+
+    #[test]
+    fn written_forms_parse_like_the_config_language() {
+        let p = |t: &str| t.parse::<Subnet>();
+        assert_eq!(p("1.1"), Ok(Subnet::exact(a(1, 1))));
+        assert_eq!(p("192.0/8"), Ok(Subnet::new(a(192, 0), a(255, 0))));
+        assert_eq!(p("128.0\\1"), Ok(Subnet::new(a(128, 0), a(0, 128))));
+        assert_eq!(p("255.0:128.240"), Ok(Subnet::new(a(255, 0), a(128, 240))));
+        assert_eq!(
+            p("256.1").map_err(|e| e.0),
+            Err("Invalid MAVLink subnet: \"256.1\".".into())
+        );
+        assert_eq!(
+            p("1.1/17").map_err(|e| e.0),
+            Err("Forward slash mask (17) is outside of allowed range (0 - 16).".into())
+        );
+        assert!(p("1.1\\9").is_err() && p("").is_err() && p("1").is_err() && p("1.+1").is_err());
     }
 }

@@ -1,6 +1,183 @@
-//! Reading MAVLink captures: ground-station `.tlog` files and classic `.pcap` files.
-//! Pure parsers over byte slices; callers read the files.
+//! Reading MAVLink captures: raw byte streams, ground-station `.tlog` files, and
+//! `.pcap` / `.pcapng` packet captures (MAVLink in UDP). Pure parsers over byte slices;
+//! callers read the files. The format is told from the content, not the file name.
 
 pub mod link;
 pub mod pcap;
+pub mod pcapng;
 pub mod tlog;
+
+use std::fmt;
+
+use crate::wire::frame::{MAGIC_V1, MAGIC_V2};
+
+/// The kinds of capture understood.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// MAVLink bytes as they came off a serial port (no framing of its own).
+    Raw,
+    /// Ground-station telemetry log: 8-byte big-endian µs timestamp before each frame.
+    Tlog,
+    /// Classic libpcap.
+    Pcap,
+    /// pcapng.
+    PcapNg,
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Raw => "raw MAVLink",
+            Format::Tlog => "tlog",
+            Format::Pcap => "pcap",
+            Format::PcapNg => "pcapng",
+        })
+    }
+}
+
+/// Microseconds since the UNIX epoch of 2000-01-01 and 2100-01-01: the plausible range
+/// of a tlog's first timestamp.
+const TLOG_EPOCH_RANGE: std::ops::Range<u64> = 946_684_800_000_000..4_102_444_800_000_000;
+
+/// Tells the format of a capture from its first bytes.
+pub fn detect(data: &[u8]) -> Format {
+    if pcap::is_pcap(data) {
+        return Format::Pcap;
+    }
+    if pcapng::is_pcapng(data) {
+        return Format::PcapNg;
+    }
+    let tlog_like = data.len() > 8
+        && matches!(data[8], MAGIC_V1 | MAGIC_V2)
+        && data[..8]
+            .try_into()
+            .map(u64::from_be_bytes)
+            .is_ok_and(|ts| TLOG_EPOCH_RANGE.contains(&ts));
+    if tlog_like { Format::Tlog } else { Format::Raw }
+}
+
+/// A stretch of MAVLink bytes from a capture, as it was received.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unit<'a> {
+    /// When it was captured (µs since the UNIX epoch), if the format records it.
+    pub timestamp_us: Option<u64>,
+    /// Offset of `bytes` in the file.
+    pub offset: usize,
+    /// The bytes: the whole file (raw), one tlog record's frame, or one UDP payload.
+    pub bytes: &'a [u8],
+    /// For packet captures, the UDP source (IPv4 address and port).
+    pub source: Option<([u8; 4], u16)>,
+}
+
+/// Why a capture could not be read to its end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CaptureError {
+    /// A tlog problem.
+    Tlog(tlog::TlogError),
+    /// A pcap or pcapng problem.
+    Pcap(pcap::PcapError),
+}
+
+impl CaptureError {
+    /// Byte offset of the problem, where known.
+    pub fn offset(&self) -> usize {
+        match self {
+            CaptureError::Tlog(tlog::TlogError::BadMagic { offset, .. }) => *offset,
+            CaptureError::Tlog(tlog::TlogError::Truncated { offset }) => *offset,
+            CaptureError::Pcap(pcap::PcapError::Truncated(at)) => *at,
+            CaptureError::Pcap(_) => 0,
+        }
+    }
+}
+
+impl fmt::Display for CaptureError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CaptureError::Tlog(e) => write!(f, "{e}"),
+            CaptureError::Pcap(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// Calls `each` for every unit of `data` in file order (stopping early if it returns
+/// false), then returns the first error that stopped the reading, if any.
+pub fn for_each_unit<'a>(
+    format: Format,
+    data: &'a [u8],
+    mut each: impl FnMut(Unit<'a>) -> bool,
+) -> Result<(), CaptureError> {
+    match format {
+        Format::Raw => {
+            each(Unit {
+                timestamp_us: None,
+                offset: 0,
+                bytes: data,
+                source: None,
+            });
+            Ok(())
+        }
+        Format::Tlog => {
+            for rec in tlog::records(data) {
+                let rec = rec.map_err(CaptureError::Tlog)?;
+                let unit = Unit {
+                    timestamp_us: Some(rec.timestamp_us),
+                    offset: rec.offset + 8,
+                    bytes: rec.frame,
+                    source: None,
+                };
+                if !each(unit) {
+                    break;
+                }
+            }
+            Ok(())
+        }
+        Format::Pcap => {
+            let reader = pcap::Reader::new(data).map_err(CaptureError::Pcap)?;
+            datagrams(reader, each)
+        }
+        Format::PcapNg => {
+            let reader = pcapng::Reader::new(data).map_err(CaptureError::Pcap)?;
+            datagrams(reader, each)
+        }
+    }
+}
+
+fn datagrams<'a>(
+    reader: impl Iterator<Item = Result<pcap::Datagram<'a>, pcap::PcapError>>,
+    mut each: impl FnMut(Unit<'a>) -> bool,
+) -> Result<(), CaptureError> {
+    for dg in reader {
+        let dg = dg.map_err(CaptureError::Pcap)?;
+        let unit = Unit {
+            timestamp_us: Some(dg.timestamp_us),
+            offset: dg.offset,
+            bytes: dg.payload,
+            source: Some(dg.source),
+        };
+        if !each(unit) {
+            break;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_are_told_from_content() {
+        assert_eq!(detect(&[0xd4, 0xc3, 0xb2, 0xa1, 0, 0]), Format::Pcap);
+        assert_eq!(detect(&[0x0a, 0x0d, 0x0d, 0x0a]), Format::PcapNg);
+        let mut tlog = 1_723_734_165_000_000u64.to_be_bytes().to_vec();
+        tlog.push(MAGIC_V2);
+        assert_eq!(detect(&tlog), Format::Tlog);
+        assert_eq!(detect(&[MAGIC_V2, 9, 0]), Format::Raw);
+        assert_eq!(detect(&[]), Format::Raw);
+        // A raw stream whose 9th byte happens to be a magic byte is still raw.
+        assert_eq!(
+            detect(&[MAGIC_V2, 0, 0, 0, 0, 0, 0, 0, MAGIC_V2]),
+            Format::Raw
+        );
+    }
+}

@@ -37,7 +37,7 @@ impl std::fmt::Display for PcapError {
         match self {
             PcapError::NotPcap => write!(f, "not a pcap file"),
             PcapError::UnsupportedLinkType(t) => write!(f, "unsupported pcap link type {t}"),
-            PcapError::Truncated(at) => write!(f, "offset {at}: file ends inside a packet record"),
+            PcapError::Truncated(_) => write!(f, "file ends inside a packet record"),
         }
     }
 }

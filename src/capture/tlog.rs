@@ -37,15 +37,11 @@ pub enum TlogError {
 impl std::fmt::Display for TlogError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            TlogError::BadMagic { offset, byte } => {
-                write!(
-                    f,
-                    "offset {offset}: expected a MAVLink start byte, found 0x{byte:02x}"
-                )
-            }
-            TlogError::Truncated { offset } => {
-                write!(f, "offset {offset}: file ends inside a record")
-            }
+            TlogError::BadMagic { byte, .. } => write!(
+                f,
+                "expected a MAVLink start byte after the timestamp, found 0x{byte:02x}"
+            ),
+            TlogError::Truncated { .. } => write!(f, "file ends inside a record"),
         }
     }
 }

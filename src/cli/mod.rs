@@ -5,8 +5,10 @@ mod args;
 mod run;
 mod search;
 mod text;
+mod tools;
 
 pub use args::{Options, parse};
 pub use run::{Outcome, run};
 pub use search::find_config;
 pub use text::{help, version};
+pub use tools::run_tool;

@@ -24,6 +24,12 @@ pub enum Outcome {
 /// Handles the command line (`args` includes the program name). Messages go to `out` and
 /// `err`; the environment and filesystem are read for the configuration search.
 pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outcome {
+    if let Some(outcome) = args
+        .get(1..)
+        .and_then(|rest| super::run_tool(rest, out, err))
+    {
+        return outcome;
+    }
     let mut args = args.into_iter();
     let argv0 = args.next().unwrap_or_else(|| "mavtables".to_string());
     let options = match parse(args) {

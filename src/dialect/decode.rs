@@ -25,8 +25,10 @@ fn element(field: &Field, payload: &[u8], i: usize) -> Value {
     let size = field.ty.size();
     let at = field.offset as usize + i * size;
     let mut b = [0u8; 8];
-    if let Some(src) = payload.get(at..at + size) {
-        b[..size].copy_from_slice(src);
+    // A v2 payload may end inside a field: the missing high bytes read as zero.
+    if let Some(src) = payload.get(at..) {
+        let n = src.len().min(size);
+        b[..n].copy_from_slice(&src[..n]);
     }
     match field.ty {
         FieldType::U8 | FieldType::Char => Value::UInt(u64::from(b[0])),

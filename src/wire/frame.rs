@@ -111,9 +111,10 @@ pub(crate) enum Candidate {
 
 /// Judges the frame candidate at the start of `s` (which must start with a magic byte).
 /// Header problems are reported as soon as the header is complete, so a bad frame costs
-/// no waiting for bytes that belong to the next one.
+/// no waiting for bytes that belong to the next one. With `check_crc` false only the
+/// structure is checked (for tools that inspect captures with damaged checksums).
 #[inline]
-pub(crate) fn check_candidate(s: &[u8]) -> Candidate {
+pub(crate) fn check_candidate(s: &[u8], check_crc: bool) -> Candidate {
     let v2 = s[0] == MAGIC_V2;
     let header_len = if v2 { HEADER_LEN_V2 } else { HEADER_LEN_V1 };
     if s.len() < header_len {
@@ -147,7 +148,7 @@ pub(crate) fn check_candidate(s: &[u8]) -> Candidate {
         return Candidate::NeedMore(total);
     }
     let wire = u16::from_le_bytes([s[body], s[body + 1]]);
-    if frame_checksum(&s[1..body], info.crc_extra) != wire {
+    if check_crc && frame_checksum(&s[1..body], info.crc_extra) != wire {
         return Candidate::Reject(Rejection::BadCrc);
     }
     Candidate::Frame(total, info)
@@ -206,7 +207,7 @@ impl<'a> Frame<'a> {
             Some(&b) if b != MAGIC_V1 && b != MAGIC_V2 => return Err(ExactError::BadMagic(b)),
             Some(_) => {}
         }
-        match check_candidate(bytes) {
+        match check_candidate(bytes, true) {
             Candidate::NeedMore(needed) => Err(ExactError::Rejected(Rejection::Truncated {
                 needed,
                 have: bytes.len(),

@@ -84,6 +84,8 @@ pub struct Parser {
     /// Stream offset of the next byte to be fed.
     position: u64,
     stats: ParserStats,
+    /// False for structure-only parsing ([`Parser::without_crc_check`]).
+    check_crc: bool,
 }
 
 impl Default for Parser {
@@ -100,6 +102,16 @@ impl Parser {
             pending_offset: 0,
             position: 0,
             stats: ParserStats::default(),
+            check_crc: true,
+        }
+    }
+
+    /// A parser that checks frame structure (magic, flags, known id, length limits) but
+    /// not checksums. For inspecting captures; never for routing.
+    pub fn without_crc_check() -> Self {
+        Parser {
+            check_crc: false,
+            ..Parser::new()
         }
     }
 
@@ -173,7 +185,7 @@ impl Parser {
                 self.skip_pending(skip, events);
                 continue;
             }
-            match check_candidate(&self.pending) {
+            match check_candidate(&self.pending, self.check_crc) {
                 Candidate::NeedMore(total) => {
                     let take = (total - self.pending.len()).min(data.len());
                     self.pending.extend_from_slice(&data[..take]);
@@ -239,7 +251,7 @@ impl Parser {
                 continue;
             }
             let rest = &data[i..];
-            match check_candidate(rest) {
+            match check_candidate(rest, self.check_crc) {
                 Candidate::Frame(len, info) => {
                     self.stats.frames += 1;
                     events.frame(Frame::new_unchecked(&rest[..len], info, base + i as u64));

@@ -1,0 +1,286 @@
+//! pcapng files (Wireshark's default format): the UDP payloads of their Enhanced and
+//! Simple Packet Blocks (link types as in [`super::link`]). Other blocks, other
+//! protocols and interfaces of unknown link types are passed over and counted.
+
+use super::link;
+use super::pcap::{Datagram, PcapError};
+
+const SHB: u32 = 0x0A0D_0D0A;
+const IDB: u32 = 1;
+const SPB: u32 = 3;
+const EPB: u32 = 6;
+const BYTE_ORDER_MAGIC: u32 = 0x1A2B_3C4D;
+const OPT_IF_TSRESOL: u16 = 9;
+
+/// True if `data` starts like a pcapng file.
+pub fn is_pcapng(data: &[u8]) -> bool {
+    data.get(..4) == Some(&SHB.to_le_bytes())
+}
+
+/// One interface described by an Interface Description Block.
+#[derive(Debug, Clone, Copy)]
+struct Interface {
+    link_type: u32,
+    snap_len: u32,
+    /// Timestamp units per second.
+    units_per_sec: u64,
+}
+
+/// Reader over a pcapng file held in memory.
+#[derive(Debug, Clone)]
+pub struct Reader<'a> {
+    data: &'a [u8],
+    pos: usize,
+    big_endian: bool,
+    interfaces: Vec<Interface>,
+    /// Packets that were not IPv4/UDP, or on interfaces of unsupported link types.
+    pub skipped: u64,
+    failed: bool,
+}
+
+impl<'a> Reader<'a> {
+    /// Checks the first Section Header Block and prepares to read blocks.
+    pub fn new(data: &'a [u8]) -> Result<Self, PcapError> {
+        if data.len() < 12 || !is_pcapng(data) {
+            return Err(PcapError::NotPcap);
+        }
+        let big_endian = match u32::from_le_bytes([data[8], data[9], data[10], data[11]]) {
+            BYTE_ORDER_MAGIC => false,
+            m if m.swap_bytes() == BYTE_ORDER_MAGIC => true,
+            _ => return Err(PcapError::NotPcap),
+        };
+        Ok(Reader {
+            data,
+            pos: 0,
+            big_endian,
+            interfaces: Vec::new(),
+            skipped: 0,
+            failed: false,
+        })
+    }
+
+    fn u16_at(&self, at: usize) -> Option<u16> {
+        let b = [*self.data.get(at)?, *self.data.get(at + 1)?];
+        Some(if self.big_endian {
+            u16::from_be_bytes(b)
+        } else {
+            u16::from_le_bytes(b)
+        })
+    }
+
+    fn u32_at(&self, at: usize) -> Option<u32> {
+        let b: [u8; 4] = self.data.get(at..at + 4)?.try_into().ok()?;
+        Some(if self.big_endian {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    }
+
+    /// Reads an IDB body starting at `body` and ending before `end`.
+    fn interface(&self, body: usize, end: usize) -> Option<Interface> {
+        let link_type = u32::from(self.u16_at(body)?);
+        let snap_len = self.u32_at(body + 4)?;
+        let mut units_per_sec = 1_000_000;
+        let mut at = body + 8;
+        while at + 4 <= end {
+            let code = self.u16_at(at)?;
+            let len = self.u16_at(at + 2)? as usize;
+            if code == 0 {
+                break;
+            }
+            if code == OPT_IF_TSRESOL && len >= 1 {
+                let v = *self.data.get(at + 4)?;
+                let exp = u32::from(v & 0x7f);
+                units_per_sec = if v & 0x80 == 0 {
+                    10u64.checked_pow(exp)?
+                } else {
+                    1u64.checked_shl(exp)?
+                };
+            }
+            at += 4 + len.div_ceil(4) * 4;
+        }
+        Some(Interface {
+            link_type,
+            snap_len,
+            units_per_sec,
+        })
+    }
+
+    /// The datagram in a packet block, if any: (interface, timestamp, captured bytes, start).
+    fn packet(
+        &self,
+        kind: u32,
+        body: usize,
+        end: usize,
+    ) -> Option<(Interface, u64, &'a [u8], usize)> {
+        let (iface, ts, start, len) = if kind == EPB {
+            let iface = *self.interfaces.get(self.u32_at(body)? as usize)?;
+            let ts = (u64::from(self.u32_at(body + 4)?) << 32) | u64::from(self.u32_at(body + 8)?);
+            (iface, ts, body + 20, self.u32_at(body + 12)? as usize)
+        } else {
+            let iface = *self.interfaces.first()?;
+            let orig = self.u32_at(body)? as usize;
+            let cap = if iface.snap_len == 0 {
+                orig
+            } else {
+                orig.min(iface.snap_len as usize)
+            };
+            (iface, 0, body + 4, cap)
+        };
+        if start + len > end {
+            return None;
+        }
+        Some((iface, ts, &self.data[start..start + len], start))
+    }
+}
+
+impl<'a> Iterator for Reader<'a> {
+    type Item = Result<Datagram<'a>, PcapError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while !self.failed && self.pos < self.data.len() {
+            let at = self.pos;
+            let (Some(kind), Some(total)) = (self.u32_at(at), self.u32_at(at + 4)) else {
+                self.failed = true;
+                return Some(Err(PcapError::Truncated(at)));
+            };
+            let total = total as usize;
+            if total < 12 || !total.is_multiple_of(4) || at + total > self.data.len() {
+                self.failed = true;
+                return Some(Err(PcapError::Truncated(at)));
+            }
+            self.pos = at + total;
+            let (body, end) = (at + 8, at + total - 4);
+            match kind {
+                SHB => {
+                    // A new section may switch byte order; its interfaces start afresh.
+                    if let Some(m) = self.data.get(body..body + 4) {
+                        let m = u32::from_le_bytes([m[0], m[1], m[2], m[3]]);
+                        self.big_endian = m != BYTE_ORDER_MAGIC;
+                    }
+                    self.interfaces.clear();
+                }
+                IDB => match self.interface(body, end) {
+                    Some(i) => self.interfaces.push(i),
+                    None => {
+                        self.failed = true;
+                        return Some(Err(PcapError::Truncated(at)));
+                    }
+                },
+                EPB | SPB => {
+                    let found =
+                        self.packet(kind, body, end)
+                            .and_then(|(iface, ts, frame, start)| {
+                                let udp = link::udp_payload(iface.link_type, frame)?;
+                                let timestamp_us = u64::try_from(
+                                    u128::from(ts) * 1_000_000
+                                        / u128::from(iface.units_per_sec.max(1)),
+                                )
+                                .unwrap_or(u64::MAX);
+                                Some(Datagram {
+                                    timestamp_us,
+                                    source: udp.source,
+                                    destination: udp.destination,
+                                    payload: udp.payload,
+                                    offset: start + udp.offset,
+                                })
+                            });
+                    match found {
+                        Some(d) => return Some(Ok(d)),
+                        None => self.skipped += 1,
+                    }
+                }
+                _ => {}
+            }
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+        let total = (12 + body.len().div_ceil(4) * 4) as u32;
+        let mut b = kind.to_le_bytes().to_vec();
+        b.extend(total.to_le_bytes());
+        b.extend(body);
+        b.resize(total as usize - 4, 0);
+        b.extend(total.to_le_bytes());
+        b
+    }
+
+    /// A pcapng with one raw-IPv4 interface (µs resolution) and one EPB holding UDP `payload`.
+    pub(crate) fn sample(payload: &[u8]) -> Vec<u8> {
+        let mut shb = BYTE_ORDER_MAGIC.to_le_bytes().to_vec();
+        shb.extend([1, 0, 0, 0]);
+        shb.extend(u64::MAX.to_le_bytes());
+        let mut idb = (link::DLT_RAW as u16).to_le_bytes().to_vec();
+        idb.extend([0, 0, 0, 0, 0, 0]);
+        let total = 28 + payload.len();
+        let mut ip = vec![
+            0x45,
+            0,
+            (total >> 8) as u8,
+            total as u8,
+            0,
+            0,
+            0,
+            0,
+            64,
+            17,
+            0,
+            0,
+            127,
+            0,
+            0,
+            1,
+            127,
+            0,
+            0,
+            1,
+        ];
+        let ulen = 8 + payload.len();
+        ip.extend([0x38, 0x96, 0x39, 0x14, (ulen >> 8) as u8, ulen as u8, 0, 0]);
+        ip.extend(payload);
+        let ts: u64 = 1_700_000_000_123_456;
+        let mut epb = 0u32.to_le_bytes().to_vec();
+        epb.extend(((ts >> 32) as u32).to_le_bytes());
+        epb.extend((ts as u32).to_le_bytes());
+        epb.extend((ip.len() as u32).to_le_bytes());
+        epb.extend((ip.len() as u32).to_le_bytes());
+        epb.extend(&ip);
+        let mut out = block(SHB, &shb);
+        out.extend(block(IDB, &idb));
+        out.extend(block(0xBAD, b"unknown block"));
+        out.extend(block(EPB, &epb));
+        out
+    }
+
+    #[test]
+    fn reads_udp_payloads_from_enhanced_packet_blocks() {
+        let data = sample(b"hello");
+        assert!(is_pcapng(&data));
+        let got: Vec<_> = Reader::new(&data).expect("pcapng").collect();
+        assert_eq!(got.len(), 1);
+        let d = got[0].expect("datagram");
+        assert_eq!(d.payload, b"hello");
+        assert_eq!(d.timestamp_us, 1_700_000_000_123_456);
+        assert_eq!(d.source, ([127, 0, 0, 1], 14486));
+        assert_eq!(&data[d.offset..d.offset + 5], b"hello");
+    }
+
+    #[test]
+    fn truncated_files_are_reported_not_panicked_on() {
+        let data = sample(b"hello");
+        for cut in 0..data.len() {
+            if let Ok(r) = Reader::new(&data[..cut]) {
+                for _ in r {}
+            }
+        }
+        let mut r = Reader::new(&data[..data.len() - 3]).expect("header intact");
+        assert!(matches!(r.next(), Some(Err(PcapError::Truncated(_)))));
+    }
+}

@@ -1,0 +1,181 @@
+//! The `inspect` and `replay` subcommands: argument parsing and output.
+
+use std::io::{IsTerminal, Write};
+
+use super::Outcome;
+use crate::address::Subnet;
+use crate::config::suggest::did_you_mean;
+use crate::dialect;
+use crate::tools::inspect::{self, Options};
+use crate::tools::replay::{self, ProgressBar, Speed, Target};
+
+const INSPECT_USAGE: &str = "\
+usage: mavtables inspect [OPTIONS] FILE...
+  Reads raw MAVLink streams, .tlog, .pcap and .pcapng files (told from the content)
+  and prints one line per frame and a summary.
+  --json            one JSON object per frame, every field decoded (summary on stderr)
+  --check           only a verdict: exit 0 if the file is a valid sequence of frames
+  --only NAME[,..]  with --check: the message types allowed
+  --no-crc          with --check: check structure only, not checksums
+  --msg NAME[,..]   show only these message types
+  --from SUBNET     show only frames from this MAVLink subnet (e.g. 1.0/8)
+  --to SUBNET       show only frames targeted into this MAVLink subnet
+";
+
+const REPLAY_USAGE: &str = "\
+usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|max]
+  Sends a capture's valid frames at their recorded timing (divided by X; default 1),
+  or as fast as possible with --speed max. Raw streams have no timing: they are sent
+  as fast as the link takes them.
+";
+
+/// Runs `inspect` or `replay` if `args` (without the program name) starts with one.
+pub fn run_tool(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Option<Outcome> {
+    let (name, rest) = args.split_first()?;
+    let result = match name.as_str() {
+        "inspect" => run_inspect(rest, out, err),
+        "replay" => run_replay(rest, out, err),
+        _ => return None,
+    };
+    Some(match result {
+        Ok(code) => Outcome::Exit(code),
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            Outcome::Exit(1)
+        }
+    })
+}
+
+/// Message ids from a comma-separated list of names.
+fn message_ids(list: &str) -> Result<Vec<u32>, String> {
+    list.split(',')
+        .map(|name| {
+            dialect::by_name(name).map(|m| m.id).ok_or_else(|| {
+                let names = dialect::messages().iter().map(|m| m.name);
+                match did_you_mean(name, names) {
+                    Some(hint) => format!("unknown message name '{name}'; {hint}"),
+                    None => format!("unknown message name '{name}'"),
+                }
+            })
+        })
+        .collect()
+}
+
+/// The value after option `flag`.
+fn value<'a>(it: &mut impl Iterator<Item = &'a String>, flag: &str) -> Result<&'a str, String> {
+    it.next()
+        .map(String::as_str)
+        .ok_or_else(|| format!("the required argument for option '{flag}' is missing"))
+}
+
+fn subnet(text: &str) -> Result<Subnet, String> {
+    text.parse()
+        .map_err(|e: crate::address::SubnetParseError| e.0)
+}
+
+fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Result<u8, String> {
+    let mut opts = Options::default();
+    let mut files = Vec::new();
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        match arg.as_str() {
+            "-h" | "--help" => {
+                let _ = out.write_all(INSPECT_USAGE.as_bytes());
+                return Ok(0);
+            }
+            "--json" => opts.json = true,
+            "--check" => opts.check = true,
+            "--no-crc" => opts.no_crc = true,
+            "--only" => opts.only = Some(message_ids(value(&mut it, arg)?)?),
+            "--msg" => opts.msgs = Some(message_ids(value(&mut it, arg)?)?),
+            "--from" => opts.from = Some(subnet(value(&mut it, arg)?)?),
+            "--to" => opts.to = Some(subnet(value(&mut it, arg)?)?),
+            a if a.starts_with('-') && a.len() > 1 => {
+                return Err(format!("unrecognised option '{a}'"));
+            }
+            file => files.push(file.to_string()),
+        }
+    }
+    if files.is_empty() {
+        let _ = err.write_all(INSPECT_USAGE.as_bytes());
+        return Err("no capture file given".into());
+    }
+    if (opts.only.is_some() || opts.no_crc) && !opts.check {
+        return Err("--only and --no-crc go with --check".into());
+    }
+    let mut code = 0;
+    for file in &files {
+        let data = std::fs::read(file).map_err(|e| format!("cannot read {file}: {e}"))?;
+        let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut *out);
+        let report = inspect::inspect(&data, &opts, &mut buffered)
+            .and_then(|r| buffered.flush().map(|()| r));
+        drop(buffered);
+        let report = match report {
+            Ok(r) => r,
+            // The reader went away (`| head`): stop quietly, as command-line tools do.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(code),
+            Err(e) => return Err(format!("writing output: {e}")),
+        };
+        if opts.check {
+            match &report.problem {
+                None => {
+                    let _ = writeln!(out, "{file}: valid ({} frames)", report.frames);
+                }
+                Some(p) => {
+                    let _ = writeln!(out, "{file}: invalid at byte {}: {}", p.offset, p.reason);
+                    code = 1;
+                }
+            }
+        } else {
+            let summary: &mut dyn Write = if opts.json { &mut *err } else { &mut *out };
+            inspect::write_summary(file, &data, &report, summary)
+                .map_err(|e| format!("writing output: {e}"))?;
+        }
+    }
+    Ok(code)
+}
+
+fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Result<u8, String> {
+    let mut file = None;
+    let mut target = None;
+    let mut speed = Speed::Factor(1.0);
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        match arg.as_str() {
+            "-h" | "--help" => {
+                let _ = out.write_all(REPLAY_USAGE.as_bytes());
+                return Ok(0);
+            }
+            "--to" => target = Some(Target::parse(value(&mut it, arg)?)?),
+            "--speed" => speed = Speed::parse(value(&mut it, arg)?)?,
+            a if a.starts_with('-') && a.len() > 1 => {
+                return Err(format!("unrecognised option '{a}'"));
+            }
+            f if file.is_none() => file = Some(f.to_string()),
+            extra => return Err(format!("unexpected argument '{extra}'")),
+        }
+    }
+    let (Some(file), Some(target)) = (file, target) else {
+        let _ = err.write_all(REPLAY_USAGE.as_bytes());
+        return Err("replay needs a FILE and --to".into());
+    };
+    let data = std::fs::read(&file).map_err(|e| format!("cannot read {file}: {e}"))?;
+    let frames = replay::frames(&data).map_err(|e| format!("{file}: {e}"))?;
+    let terminal = std::io::stderr().is_terminal();
+    let mut bar = ProgressBar::new(std::io::stderr());
+    let mut progress = |done, total| {
+        if terminal {
+            bar.update(done, total);
+        }
+    };
+    let summary = replay::replay(&frames, &target, speed, &mut progress)
+        .map_err(|e| format!("{target}: {e}"))?;
+    let _ = writeln!(
+        out,
+        "sent {} frames ({} bytes) to {target} in {:.3} s",
+        summary.frames,
+        summary.bytes,
+        summary.elapsed.as_secs_f64()
+    );
+    Ok(0)
+}

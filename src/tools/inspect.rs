@@ -1,0 +1,422 @@
+//! `mavtables inspect`: list, decode, summarise or check the frames of a capture.
+//!
+//! Pure over bytes: the caller reads the file and gives an output stream, so every mode
+//! is testable without touching the file system.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io::{self, Write};
+
+use crate::address::{Address, Subnet};
+use crate::capture::{self, Unit};
+use crate::dialect::{self, decode};
+use crate::wire::{Frame, ParseEvents, Parser, ParserStats, Rejection, Version};
+
+use super::utc;
+
+/// What `inspect` was asked to do.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// One JSON object per frame with every field decoded (summary on the error stream).
+    pub json: bool,
+    /// Verdict only: is the file a valid sequence of zero or more frames?
+    pub check: bool,
+    /// With `check`: message ids allowed (others are a problem).
+    pub only: Option<Vec<u32>>,
+    /// Check structure only, not checksums.
+    pub no_crc: bool,
+    /// Show only these message ids.
+    pub msgs: Option<Vec<u32>>,
+    /// Show only frames whose source is in this subnet.
+    pub from: Option<Subnet>,
+    /// Show only frames whose target is in this subnet (frames without one never match).
+    pub to: Option<Subnet>,
+}
+
+/// The first thing wrong with a capture, for `--check`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problem {
+    /// Byte offset in the file.
+    pub offset: u64,
+    /// What is wrong.
+    pub reason: String,
+}
+
+/// What one file contained.
+#[derive(Debug, Clone, Default)]
+pub struct Report {
+    /// Valid frames.
+    pub frames: u64,
+    /// Frames that passed the `--msg/--from/--to` selection.
+    pub selected: u64,
+    /// Parser totals over the whole file.
+    pub stats: ParserStats,
+    /// Selected frames per message id.
+    pub per_message: BTreeMap<u32, u64>,
+    /// Selected frames per source address.
+    pub per_source: BTreeMap<Address, u64>,
+    /// The first problem found, if any (`None` means the file is a valid sequence).
+    pub problem: Option<Problem>,
+}
+
+/// Receives parser events for one unit of a capture.
+struct Sink<'a> {
+    opts: &'a Options,
+    out: &'a mut dyn Write,
+    report: &'a mut Report,
+    /// File offset of the unit's first byte.
+    base: u64,
+    timestamp_us: Option<u64>,
+    line: String,
+    io_error: Option<io::Error>,
+}
+
+impl Sink<'_> {
+    fn problem(&mut self, offset: u64, reason: impl FnOnce() -> String) {
+        if self.report.problem.is_none() {
+            self.report.problem = Some(Problem {
+                offset: self.base + offset,
+                reason: reason(),
+            });
+        }
+    }
+
+    fn selected(&self, f: &Frame<'_>) -> bool {
+        let o = self.opts;
+        o.msgs
+            .as_ref()
+            .is_none_or(|ids| ids.contains(&f.message_id()))
+            && o.from.is_none_or(|s| s.contains(f.source()))
+            && o.to
+                .is_none_or(|s| f.target().is_some_and(|t| s.contains(t)))
+    }
+
+    fn write_text(&mut self, f: &Frame<'_>) {
+        let line = &mut self.line;
+        line.clear();
+        match self.timestamp_us {
+            Some(ts) => line.push_str(&utc::format_micros(ts)),
+            None => {
+                let _ = write!(line, "@{:<10}", self.base + f.offset());
+            }
+        }
+        let v = if f.version() == Version::V2 { 2 } else { 1 };
+        let target = f
+            .target()
+            .map_or_else(|| "-".to_string(), |t| t.to_string());
+        let _ = write!(
+            line,
+            "  v{v}  seq {:>3}  {:>7} -> {:<7}  {} (#{})  len {}{}",
+            f.seq(),
+            f.source().to_string(),
+            target,
+            f.name(),
+            f.message_id(),
+            f.payload_len(),
+            if f.is_signed() { "  signed" } else { "" }
+        );
+        line.push('\n');
+    }
+
+    fn write_json(&mut self, f: &Frame<'_>) {
+        let line = &mut self.line;
+        line.clear();
+        let _ = write!(line, "{{\"offset\":{},\"time_us\":", self.base + f.offset());
+        match self.timestamp_us {
+            Some(ts) => {
+                let _ = write!(line, "{ts}");
+            }
+            None => line.push_str("null"),
+        }
+        let v = if f.version() == Version::V2 { 2 } else { 1 };
+        let _ = write!(
+            line,
+            ",\"version\":{v},\"seq\":{},\"sys\":{},\"comp\":{},\"msg_id\":{},\"name\":\"{}\",\"len\":{},\"signed\":{},\"target\":",
+            f.seq(),
+            f.system(),
+            f.component(),
+            f.message_id(),
+            f.name(),
+            f.payload_len(),
+            f.is_signed()
+        );
+        match f.target() {
+            Some(t) => {
+                let _ = write!(line, "\"{t}\"");
+            }
+            None => line.push_str("null"),
+        }
+        line.push_str(",\"fields\":");
+        decode::write_json_fields(line, f.info(), f.payload());
+        line.push_str("}\n");
+    }
+}
+
+impl ParseEvents for Sink<'_> {
+    fn frame(&mut self, f: Frame<'_>) {
+        self.report.frames += 1;
+        if let Some(only) = &self.opts.only
+            && !only.contains(&f.message_id())
+        {
+            let text = f.to_string();
+            self.problem(f.offset(), || {
+                format!("{text} is not one of the allowed messages")
+            });
+        }
+        // MAVLink 2 defines no compatibility flags: a strict check treats any as a fault
+        // (a router ignores them, as the protocol allows).
+        if self.opts.check && f.compat_flags() != 0 {
+            let flags = f.compat_flags();
+            self.problem(f.offset(), || {
+                format!("unknown compatibility flags 0x{flags:02x}")
+            });
+        }
+        if self.opts.check || !self.selected(&f) {
+            return;
+        }
+        self.report.selected += 1;
+        *self.report.per_message.entry(f.message_id()).or_default() += 1;
+        *self.report.per_source.entry(f.source()).or_default() += 1;
+        if self.io_error.is_some() {
+            return;
+        }
+        if self.opts.json {
+            self.write_json(&f);
+        } else {
+            self.write_text(&f);
+        }
+        if let Err(e) = self.out.write_all(self.line.as_bytes()) {
+            self.io_error = Some(e);
+        }
+    }
+
+    fn rejected(&mut self, offset: u64, why: Rejection) {
+        self.problem(offset, || why.to_string());
+    }
+
+    fn junk(&mut self, offset: u64, len: usize) {
+        self.problem(offset, || {
+            format!("{len} byte(s) that are not part of any frame")
+        });
+    }
+}
+
+fn add_stats(total: &mut ParserStats, s: &ParserStats) {
+    total.frames += s.frames;
+    total.bad_crc += s.bad_crc;
+    total.unknown_id += s.unknown_id;
+    total.bad_flags += s.bad_flags;
+    total.bad_length += s.bad_length;
+    total.truncated += s.truncated;
+    total.junk_bytes += s.junk_bytes;
+}
+
+/// Inspects one capture held in memory, writing per-frame output to `out` (nothing in
+/// `check` mode). Returns what was found; I/O errors on `out` are returned as errors.
+pub fn inspect(data: &[u8], opts: &Options, out: &mut dyn Write) -> io::Result<Report> {
+    let format = capture::detect(data);
+    let mut report = Report::default();
+    let mut io_error = None;
+    let read = capture::for_each_unit(format, data, |unit: Unit<'_>| {
+        // A raw file is one stream; a tlog record or a datagram is a stream of its own.
+        let mut parser = if opts.no_crc {
+            Parser::without_crc_check()
+        } else {
+            Parser::new()
+        };
+        let mut sink = Sink {
+            opts,
+            out: &mut *out,
+            report: &mut report,
+            base: unit.offset as u64,
+            timestamp_us: unit.timestamp_us,
+            line: String::with_capacity(512),
+            io_error: None,
+        };
+        parser.feed_events(unit.bytes, &mut sink);
+        parser.finish(&mut sink);
+        io_error = sink.io_error.take();
+        add_stats(&mut report.stats, parser.stats());
+        io_error.is_none()
+    });
+    if let Some(e) = io_error {
+        return Err(e);
+    }
+    if let Err(e) = read {
+        let offset = e.offset() as u64;
+        if report.problem.as_ref().is_none_or(|p| p.offset > offset) {
+            report.problem = Some(Problem {
+                offset,
+                reason: e.to_string(),
+            });
+        }
+    }
+    Ok(report)
+}
+
+/// Writes the end-of-file summary of `report` for the capture called `name`.
+pub fn write_summary(
+    name: &str,
+    data: &[u8],
+    report: &Report,
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let s = &report.stats;
+    writeln!(
+        out,
+        "{name}: {} ({} bytes): {} frames, {} shown",
+        capture::detect(data),
+        data.len(),
+        report.frames,
+        report.selected
+    )?;
+    writeln!(
+        out,
+        "  rejected: {} bad checksum, {} unknown id, {} bad flags, {} bad length, {} truncated; {} junk bytes",
+        s.bad_crc, s.unknown_id, s.bad_flags, s.bad_length, s.truncated, s.junk_bytes
+    )?;
+    if !report.per_message.is_empty() {
+        writeln!(out, "  messages:")?;
+        for (id, n) in &report.per_message {
+            let name = dialect::by_id(*id).map_or("?", |m| m.name);
+            writeln!(out, "    {n:>8}  {name} (#{id})")?;
+        }
+        writeln!(out, "  sources:")?;
+        for (addr, n) in &report.per_source {
+            writeln!(out, "    {n:>8}  {addr}")?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::encode::{Header, encode_v1, encode_v2};
+
+    fn sample() -> Vec<u8> {
+        let mut s = Vec::new();
+        let h = |system| Header {
+            seq: 1,
+            system,
+            component: 1,
+        };
+        encode_v2(h(1), 0, &[0, 0, 0, 0, 2, 3, 0, 4, 3], None, &mut s).expect("heartbeat");
+        // PING to 127.1.
+        encode_v1(
+            h(2),
+            4,
+            &[0, 0, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 127, 1],
+            &mut s,
+        )
+        .expect("ping");
+        s
+    }
+
+    #[test]
+    fn text_lines_and_summary() {
+        let mut out = Vec::new();
+        let r = inspect(&sample(), &Options::default(), &mut out).expect("in memory");
+        let text = String::from_utf8(out).expect("utf-8");
+        assert_eq!(
+            text,
+            "@0           v2  seq   1      1.1 -> -        HEARTBEAT (#0)  len 9\n\
+             @21          v1  seq   1      2.1 -> 127.1    PING (#4)  len 14\n"
+        );
+        assert_eq!((r.frames, r.selected, &r.problem), (2, 2, &None));
+        let mut summary = Vec::new();
+        write_summary("s", &sample(), &r, &mut summary).expect("in memory");
+        let summary = String::from_utf8(summary).expect("utf-8");
+        assert!(
+            summary.starts_with("s: raw MAVLink (43 bytes): 2 frames, 2 shown\n"),
+            "{summary}"
+        );
+        assert!(summary.contains("       1  PING (#4)\n"));
+    }
+
+    #[test]
+    fn filters_select_frames() {
+        let opts = Options {
+            to: Some("127.0/8".parse().expect("subnet")),
+            ..Options::default()
+        };
+        let mut out = Vec::new();
+        let r = inspect(&sample(), &opts, &mut out).expect("in memory");
+        assert_eq!((r.frames, r.selected), (2, 1));
+        let opts = Options {
+            msgs: Some(vec![0]),
+            from: Some("1.1".parse().expect("subnet")),
+            ..Options::default()
+        };
+        assert_eq!(
+            inspect(&sample(), &opts, &mut Vec::new())
+                .expect("in memory")
+                .selected,
+            1
+        );
+    }
+
+    #[test]
+    fn json_has_every_field() {
+        let opts = Options {
+            json: true,
+            ..Options::default()
+        };
+        let mut out = Vec::new();
+        inspect(&sample(), &opts, &mut out).expect("in memory");
+        let text = String::from_utf8(out).expect("utf-8");
+        let first = text.lines().next().expect("a line");
+        assert_eq!(
+            first,
+            "{\"offset\":0,\"time_us\":null,\"version\":2,\"seq\":1,\"sys\":1,\"comp\":1,\"msg_id\":0,\
+             \"name\":\"HEARTBEAT\",\"len\":9,\"signed\":false,\"target\":null,\"fields\":{\"custom_mode\":0,\
+             \"type\":2,\"autopilot\":3,\"base_mode\":0,\"system_status\":4,\"mavlink_version\":3}}"
+        );
+    }
+
+    #[test]
+    fn check_reports_the_first_problem_with_its_offset() {
+        let mut data = sample();
+        data[25] ^= 0xff; // inside the PING payload: bad checksum
+        let opts = Options {
+            check: true,
+            ..Options::default()
+        };
+        let r = inspect(&data, &opts, &mut Vec::new()).expect("in memory");
+        assert_eq!(
+            r.problem,
+            Some(Problem {
+                offset: 21,
+                reason: "bad checksum".into()
+            })
+        );
+        let only = Options {
+            check: true,
+            only: Some(vec![0]),
+            ..Options::default()
+        };
+        let r = inspect(&sample(), &only, &mut Vec::new()).expect("in memory");
+        assert_eq!(r.problem.map(|p| p.offset), Some(21));
+        let r = inspect(&sample()[..30], &opts, &mut Vec::new()).expect("in memory");
+        assert_eq!(
+            r.problem.map(|p| (p.offset, p.reason)),
+            Some((21, "truncated frame: needs 22 bytes, 9 present".into()))
+        );
+    }
+
+    #[test]
+    fn empty_and_garbage_inputs() {
+        let opts = Options {
+            check: true,
+            ..Options::default()
+        };
+        assert_eq!(
+            inspect(&[], &opts, &mut Vec::new())
+                .expect("in memory")
+                .problem,
+            None
+        );
+        let r = inspect(b"garbage", &opts, &mut Vec::new()).expect("in memory");
+        assert_eq!(r.problem.map(|p| p.offset), Some(0));
+    }
+}
