@@ -110,17 +110,46 @@ pub fn write_json_value(out: &mut String, value: &Value) {
     }
 }
 
+/// Appends element `i` of `field` from `payload` as JSON, without building a [`Value`].
+/// `float` fields are written in their shortest form that reads back as the same
+/// `float` (`0.1`, not `0.10000000149011612`).
+fn write_json_element(out: &mut String, field: &Field, payload: &[u8], i: usize) {
+    match element(field, payload, i) {
+        Value::Float(v) if field.ty == FieldType::F32 && v.is_finite() => {
+            out.push_str(ryu::Buffer::new().format_finite(v as f32));
+        }
+        Value::Float(v) if v.is_finite() => out.push_str(ryu::Buffer::new().format_finite(v)),
+        Value::UInt(v) => out.push_str(itoa::Buffer::new().format(v)),
+        Value::Int(v) => out.push_str(itoa::Buffer::new().format(v)),
+        other => write_json_value(out, &other),
+    }
+}
+
 /// Appends every field of `info` decoded from `payload` as one JSON object
-/// (`{"name":value,...}`, wire order).
+/// (`{"name":value,...}`, wire order). Strings and arrays as in [`decode_field`].
 pub fn write_json_fields(out: &mut String, info: &MessageInfo, payload: &[u8]) {
     out.push('{');
-    for (i, field) in info.fields.iter().enumerate() {
-        if i > 0 {
+    for (n, field) in info.fields.iter().enumerate() {
+        if n > 0 {
             out.push(',');
         }
-        write_json_string(out, field.name);
-        out.push(':');
-        write_json_value(out, &decode_field(field, payload));
+        out.push('"');
+        out.push_str(field.name);
+        out.push_str("\":");
+        if field.array_len == 0 {
+            write_json_element(out, field, payload, 0);
+        } else if field.ty == FieldType::Char {
+            write_json_value(out, &decode_field(field, payload));
+        } else {
+            out.push('[');
+            for i in 0..field.array_len as usize {
+                if i > 0 {
+                    out.push(',');
+                }
+                write_json_element(out, field, payload, i);
+            }
+            out.push(']');
+        }
     }
     out.push('}');
 }

@@ -7,6 +7,7 @@ message ids were skipped because pymavlink's dialect lacks them.
 import json
 import math
 import os
+import struct
 import sys
 
 os.environ["MAVLINK20"] = "1"
@@ -17,7 +18,14 @@ def same(ours, theirs):
     if isinstance(theirs, float):
         if math.isnan(theirs) or math.isinf(theirs):
             return ours is None
-        return isinstance(ours, (int, float)) and float(ours) == theirs
+        if not isinstance(ours, (int, float)):
+            return False
+        # `float` fields are printed in their shortest form: compare as 32-bit floats
+        # when pymavlink's value is one.
+        if float(ours) == theirs:
+            return True
+        as_f32 = struct.unpack("<f", struct.pack("<f", theirs))[0]
+        return as_f32 == theirs and struct.unpack("<f", struct.pack("<f", float(ours)))[0] == theirs
     if isinstance(theirs, (list, tuple)):
         return isinstance(ours, list) and len(ours) == len(theirs) and all(same(a, b) for a, b in zip(ours, theirs))
     if isinstance(theirs, (bytes, bytearray)):
