@@ -1,0 +1,217 @@
+//! The only `unsafe` code of mavtables: thin wrappers over three libc calls that the
+//! standard library and mio do not offer.
+//!
+//! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams in one system
+//!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did);
+//! - `localtime_r`: the local calendar time for log lines.
+//!
+//! Every function checks its inputs so that the pointers handed to the kernel always
+//! describe memory owned by the caller for the duration of the call.
+
+use std::io;
+use std::mem::MaybeUninit;
+use std::net::{Ipv4Addr, SocketAddrV4};
+use std::os::fd::{AsRawFd, RawFd};
+
+/// Largest batch handed to one `recvmmsg` / `sendmmsg` call.
+pub const MAX_BATCH: usize = 64;
+
+fn to_sockaddr(addr: SocketAddrV4) -> libc::sockaddr_in {
+    // SAFETY: sockaddr_in is plain old data; all-zero is a valid value.
+    let mut sa: libc::sockaddr_in = unsafe { MaybeUninit::zeroed().assume_init() };
+    sa.sin_family = libc::AF_INET as libc::sa_family_t;
+    sa.sin_port = addr.port().to_be();
+    sa.sin_addr = libc::in_addr {
+        s_addr: u32::from(*addr.ip()).to_be(),
+    };
+    sa
+}
+
+fn from_sockaddr(sa: &libc::sockaddr_in) -> Option<SocketAddrV4> {
+    (sa.sin_family == libc::AF_INET as libc::sa_family_t).then(|| {
+        SocketAddrV4::new(
+            Ipv4Addr::from(u32::from_be(sa.sin_addr.s_addr)),
+            u16::from_be(sa.sin_port),
+        )
+    })
+}
+
+/// Receive buffers for [`recv_batch`]: `MAX_BATCH` slots of `slot_len` bytes.
+pub struct RecvBatch {
+    data: Vec<u8>,
+    slot_len: usize,
+    lens: [usize; MAX_BATCH],
+    addrs: [Option<SocketAddrV4>; MAX_BATCH],
+    count: usize,
+}
+
+impl RecvBatch {
+    /// Buffers for datagrams of up to `slot_len` bytes (longer ones are truncated).
+    pub fn new(slot_len: usize) -> Self {
+        RecvBatch {
+            data: vec![0; slot_len * MAX_BATCH],
+            slot_len,
+            lens: [0; MAX_BATCH],
+            addrs: [None; MAX_BATCH],
+            count: 0,
+        }
+    }
+
+    /// Datagrams received by the last call: (sender, bytes). Non-IPv4 senders are `None`.
+    pub fn iter(&self) -> impl Iterator<Item = (Option<SocketAddrV4>, &[u8])> {
+        (0..self.count).map(move |i| {
+            let start = i * self.slot_len;
+            (self.addrs[i], &self.data[start..start + self.lens[i]])
+        })
+    }
+}
+
+/// Receives up to [`MAX_BATCH`] datagrams without blocking. Returns how many arrived
+/// (`WouldBlock` when none were waiting).
+pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
+    let fd: RawFd = fd.as_raw_fd();
+    let slot = batch.slot_len;
+    // SAFETY (all three): arrays of plain-old-data C structs; all-zero is valid.
+    let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let base = batch.data.as_mut_ptr();
+    for i in 0..MAX_BATCH {
+        // SAFETY: `i * slot + slot <= data.len()` by construction of `RecvBatch`.
+        iovs[i].iov_base = unsafe { base.add(i * slot) }.cast();
+        iovs[i].iov_len = slot;
+        msgs[i].msg_hdr.msg_name = (&mut names[i] as *mut libc::sockaddr_in).cast();
+        msgs[i].msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
+        msgs[i].msg_hdr.msg_iov = &mut iovs[i];
+        msgs[i].msg_hdr.msg_iovlen = 1;
+    }
+    // SAFETY: every pointer in `msgs` refers to a local array or to `batch.data`, all of
+    // which outlive the call; the lengths match the buffers.
+    let n = unsafe {
+        libc::recvmmsg(
+            fd,
+            msgs.as_mut_ptr(),
+            MAX_BATCH as libc::c_uint,
+            libc::MSG_DONTWAIT,
+            std::ptr::null_mut(),
+        )
+    };
+    if n < 0 {
+        batch.count = 0;
+        return Err(io::Error::last_os_error());
+    }
+    let n = n as usize;
+    for i in 0..n {
+        batch.lens[i] = (msgs[i].msg_len as usize).min(slot);
+        batch.addrs[i] = from_sockaddr(&names[i]);
+    }
+    batch.count = n;
+    Ok(n)
+}
+
+/// Sends `datagrams` (destination, bytes) without blocking, as many as the kernel takes
+/// in one call. Returns how many were sent (`WouldBlock` when none could be).
+pub fn send_batch(fd: &impl AsRawFd, datagrams: &[(SocketAddrV4, &[u8])]) -> io::Result<usize> {
+    let n = datagrams.len().min(MAX_BATCH);
+    if n == 0 {
+        return Ok(0);
+    }
+    // SAFETY (all three): arrays of plain-old-data C structs; all-zero is valid.
+    let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    for (i, (to, bytes)) in datagrams[..n].iter().enumerate() {
+        names[i] = to_sockaddr(*to);
+        // The kernel only reads through this pointer (sendmmsg).
+        iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
+        iovs[i].iov_len = bytes.len();
+        msgs[i].msg_hdr.msg_name = (&mut names[i] as *mut libc::sockaddr_in).cast();
+        msgs[i].msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
+        msgs[i].msg_hdr.msg_iov = &mut iovs[i];
+        msgs[i].msg_hdr.msg_iovlen = 1;
+    }
+    // SAFETY: every pointer refers to a local array or a borrowed slice that outlives
+    // the call.
+    let sent = unsafe {
+        libc::sendmmsg(
+            fd.as_raw_fd(),
+            msgs.as_mut_ptr(),
+            n as libc::c_uint,
+            libc::MSG_DONTWAIT,
+        )
+    };
+    if sent < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(sent as usize)
+}
+
+/// Local calendar time of a UNIX time in seconds: (year, month 1–12, day, hour, minute,
+/// second). `None` if the C library cannot convert it.
+pub fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
+    let t: libc::time_t = unix_seconds;
+    // SAFETY: `tm` is plain old data; localtime_r writes it and reads only `t`.
+    let mut tm: libc::tm = unsafe { MaybeUninit::zeroed().assume_init() };
+    // SAFETY: both pointers are to live locals.
+    let r = unsafe { libc::localtime_r(&t, &mut tm) };
+    if r.is_null() {
+        return None;
+    }
+    Some((
+        tm.tm_year + 1900,
+        (tm.tm_mon + 1) as u32,
+        tm.tm_mday as u32,
+        tm.tm_hour as u32,
+        tm.tm_min as u32,
+        tm.tm_sec as u32,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::net::UdpSocket;
+
+    #[test]
+    fn batches_round_trip_over_loopback() {
+        let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let to = match rx.local_addr().expect("addr") {
+            std::net::SocketAddr::V4(a) => a,
+            _ => unreachable!("bound to IPv4"),
+        };
+        let payloads: Vec<Vec<u8>> = (0..10u8).map(|i| vec![i; 1 + i as usize]).collect();
+        let dgs: Vec<(SocketAddrV4, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
+        assert_eq!(send_batch(&tx, &dgs).expect("send"), 10);
+        let mut batch = RecvBatch::new(2048);
+        let mut got = Vec::new();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while got.len() < 10 && std::time::Instant::now() < deadline {
+            match recv_batch(&rx, &mut batch) {
+                Ok(_) => got.extend(batch.iter().map(|(from, b)| (from, b.to_vec()))),
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => std::thread::yield_now(),
+                Err(e) => panic!("recv: {e}"),
+            }
+        }
+        let from = match tx.local_addr().expect("addr") {
+            std::net::SocketAddr::V4(a) => a,
+            _ => unreachable!("bound to IPv4"),
+        };
+        assert_eq!(got.len(), 10);
+        for (i, (src, bytes)) in got.iter().enumerate() {
+            assert_eq!(*src, Some(from));
+            assert_eq!(bytes, &payloads[i]);
+        }
+        assert_eq!(
+            recv_batch(&rx, &mut batch).err().map(|e| e.kind()),
+            Some(io::ErrorKind::WouldBlock)
+        );
+    }
+
+    #[test]
+    fn local_time_is_a_valid_calendar_time() {
+        let (y, mo, d, h, mi, s) = local_time(1_723_734_165).expect("convertible");
+        assert!((2024..=2024).contains(&y) && (1..=12).contains(&mo) && (1..=31).contains(&d));
+        assert!(h < 24 && mi < 60 && s < 61);
+    }
+}
