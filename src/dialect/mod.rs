@@ -105,10 +105,34 @@ pub fn messages() -> &'static [MessageInfo] {
     &ardupilotmega::MESSAGES
 }
 
+/// Ids below this are looked up in a flat table (the hot path: nearly all traffic).
+const DENSE_IDS: usize = 512;
+/// No message at this id in [`DENSE`].
+const ABSENT: u16 = u16::MAX;
+
+/// Index into the message table for every id below [`DENSE_IDS`], built at compile time.
+static DENSE: [u16; DENSE_IDS] = {
+    let mut table = [ABSENT; DENSE_IDS];
+    let mut i = 0;
+    while i < ardupilotmega::MESSAGES.len() {
+        let id = ardupilotmega::MESSAGES[i].id as usize;
+        if id < DENSE_IDS {
+            table[id] = i as u16;
+        }
+        i += 1;
+    }
+    table
+};
+
 /// Look a message up by id; `None` for ids the dialect does not define.
 #[inline]
 pub fn by_id(id: u32) -> Option<&'static MessageInfo> {
-    ardupilotmega::index_of(id).map(|i| &ardupilotmega::MESSAGES[i])
+    let index = match DENSE.get(id as usize) {
+        Some(&ABSENT) => return None,
+        Some(&i) => i as usize,
+        None => ardupilotmega::index_of(id)?,
+    };
+    Some(&ardupilotmega::MESSAGES[index])
 }
 
 /// Look a message up by its exact (upper-case) name.
@@ -117,4 +141,27 @@ pub fn by_name(name: &str) -> Option<&'static MessageInfo> {
         .binary_search_by(|(n, _)| (*n).cmp(name))
         .ok()
         .map(|i| &ardupilotmega::MESSAGES[ardupilotmega::BY_NAME[i].1 as usize])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn by_id_agrees_with_a_linear_search_for_every_24_bit_id_that_matters() {
+        // Every id up to 2^16 plus the ends of the 24-bit range.
+        for id in (0..=65_536u32).chain([0xff_fffe, 0xff_ffff, u32::MAX]) {
+            let linear = messages().iter().find(|m| m.id == id);
+            assert_eq!(by_id(id).map(|m| m.id), linear.map(|m| m.id), "id {id}");
+        }
+    }
+
+    #[test]
+    fn by_name_finds_every_message_and_nothing_else() {
+        for m in messages() {
+            assert_eq!(by_name(m.name).map(|x| x.id), Some(m.id));
+        }
+        assert!(by_name("heartbeat").is_none());
+        assert!(by_name("NOT_A_MSG").is_none());
+    }
 }

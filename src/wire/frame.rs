@@ -441,3 +441,141 @@ impl<'a> Signature<'a> {
         &self.block[7..13]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::encode::{Header, encode_v1, encode_v2};
+
+    fn v2(id: u32, payload: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        let header = Header {
+            seq: 0xfe,
+            system: 192,
+            component: 168,
+        };
+        encode_v2(header, id, payload, None, &mut out).expect("encodable");
+        out
+    }
+
+    #[test]
+    fn v2_header_accessors() {
+        let bytes = v2(4, &[1, 0, 0, 0, 0, 0, 0, 0, 9, 0, 0, 0, 127, 1]);
+        let f = Frame::parse_exact(&bytes).expect("valid");
+        assert_eq!(f.version(), Version::V2);
+        assert_eq!((f.seq(), f.system(), f.component()), (0xfe, 192, 168));
+        assert_eq!((f.message_id(), f.name()), (4, "PING"));
+        assert_eq!(f.target(), Some(Address::new(127, 1)));
+        assert_eq!(f.to_string(), "PING (#4) from 192.168 to 127.1 (v2.0)");
+        assert_eq!(f.payload_len(), 14);
+        assert!(!f.is_signed() && f.signature().is_none());
+    }
+
+    #[test]
+    fn v1_header_accessors() {
+        let mut bytes = Vec::new();
+        let header = Header {
+            seq: 7,
+            system: 127,
+            component: 1,
+        };
+        encode_v1(header, 0, &[0, 0, 0, 0, 6, 8, 0, 0, 3], &mut bytes).expect("encodable");
+        let f = Frame::parse_exact(&bytes).expect("valid");
+        assert_eq!(f.version(), Version::V1);
+        assert_eq!((f.seq(), f.system(), f.component()), (7, 127, 1));
+        assert_eq!(f.incompat_flags(), 0);
+        assert_eq!(f.to_string(), "HEARTBEAT (#0) from 127.1 (v1.0)");
+    }
+
+    #[test]
+    fn truncated_v2_targets_read_as_zero() {
+        // SET_MODE has a target system but no target component: component is 0.
+        let set_mode = v2(11, &[0, 0, 0, 0, 123, 1]);
+        let f = Frame::parse_exact(&set_mode).expect("valid");
+        assert_eq!(f.target(), Some(Address::new(123, 0)));
+        // MISSION_SET_CURRENT with every byte zero is truncated to one byte: target 0.0,
+        // which is printed.
+        let msc = v2(41, &[0, 0, 0, 0]);
+        let f = Frame::parse_exact(&msc).expect("valid");
+        assert_eq!(f.payload_len(), 1);
+        assert_eq!(f.target(), Some(Address::new(0, 0)));
+        assert!(f.to_string().ends_with(" to 0.0 (v2.0)"));
+    }
+
+    #[test]
+    fn manual_control_target_is_the_target_system() {
+        let mut payload = [0u8; 11];
+        payload[10] = 1;
+        let f_bytes = v2(69, &payload);
+        let f = Frame::parse_exact(&f_bytes).expect("valid");
+        assert_eq!(f.target(), Some(Address::new(1, 0)));
+    }
+
+    #[test]
+    fn messages_without_target_system_have_no_target() {
+        let bytes = v2(0, &[0, 0, 0, 0, 6, 8, 0, 0, 3]);
+        assert_eq!(Frame::parse_exact(&bytes).expect("valid").target(), None);
+    }
+
+    #[test]
+    fn parse_exact_reports_what_is_wrong() {
+        let good = v2(0, &[0, 0, 0, 0, 6, 8, 0, 0, 3]);
+        assert_eq!(
+            Frame::parse_exact(&good[1..]).err(),
+            Some(ExactError::BadMagic(good[1]))
+        );
+        assert!(matches!(
+            Frame::parse_exact(&good[..good.len() - 1]),
+            Err(ExactError::Rejected(Rejection::Truncated { .. }))
+        ));
+        let mut long = good.clone();
+        long.push(0);
+        assert_eq!(
+            Frame::parse_exact(&long).err(),
+            Some(ExactError::TrailingBytes(1))
+        );
+        let mut bad_crc = good.clone();
+        bad_crc[12] ^= 1;
+        assert_eq!(
+            Frame::parse_exact(&bad_crc).err(),
+            Some(ExactError::Rejected(Rejection::BadCrc))
+        );
+        let mut flags = good.clone();
+        flags[2] = 0x02;
+        assert_eq!(
+            Frame::parse_exact(&flags).err(),
+            Some(ExactError::Rejected(Rejection::BadFlags(0x02)))
+        );
+        let mut unknown = good.clone();
+        unknown[7] = 255;
+        assert_eq!(
+            Frame::parse_exact(&unknown).err(),
+            Some(ExactError::Rejected(Rejection::UnknownId(255)))
+        );
+        let mut too_long = good;
+        too_long[1] = 10; // HEARTBEAT is at most 9 bytes
+        assert_eq!(
+            Frame::parse_exact(&too_long).err(),
+            Some(ExactError::Rejected(Rejection::BadLength {
+                id: 0,
+                len: 10
+            }))
+        );
+        assert!(matches!(
+            Frame::parse_exact(&[]),
+            Err(ExactError::Rejected(Rejection::Truncated { have: 0, .. }))
+        ));
+    }
+
+    #[test]
+    fn v1_frames_must_carry_the_whole_base_payload() {
+        // HEARTBEAT v1 with 8 payload bytes instead of 9.
+        let mut bytes = vec![MAGIC_V1, 8, 0, 1, 1, 0, 0, 0, 0, 0, 6, 8, 0, 0];
+        let crc = frame_checksum(&bytes[1..], 50);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            Frame::parse_exact(&bytes).err(),
+            Some(ExactError::Rejected(Rejection::BadLength { id: 0, len: 8 }))
+        );
+    }
+}

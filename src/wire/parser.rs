@@ -261,3 +261,176 @@ impl Parser {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::encode::{Header, encode_v1, encode_v2};
+
+    fn heartbeat(seq: u8) -> Vec<u8> {
+        let mut out = Vec::new();
+        let header = Header {
+            seq,
+            system: 1,
+            component: 1,
+        };
+        encode_v2(header, 0, &[0, 0, 0, 0, 2, 3, 0x51, 4, 3], None, &mut out).expect("encodable");
+        out
+    }
+
+    /// Records every event, owned.
+    #[derive(Default)]
+    struct Log {
+        frames: Vec<(u64, u8)>,
+        rejected: Vec<(u64, Rejection)>,
+        junk: Vec<(u64, usize)>,
+    }
+
+    impl ParseEvents for Log {
+        fn frame(&mut self, f: Frame<'_>) {
+            self.frames.push((f.offset(), f.seq()));
+        }
+        fn rejected(&mut self, offset: u64, why: Rejection) {
+            self.rejected.push((offset, why));
+        }
+        fn junk(&mut self, offset: u64, len: usize) {
+            self.junk.push((offset, len));
+        }
+    }
+
+    #[test]
+    fn junk_between_frames_is_skipped_and_counted() {
+        let mut stream = b"hello".to_vec();
+        stream.extend(heartbeat(1));
+        stream.extend(b"xy");
+        stream.extend(heartbeat(2));
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&stream, &mut log);
+        assert_eq!(log.frames, [(5, 1), (28, 2)]);
+        assert_eq!(log.junk, [(0, 5), (26, 2)]);
+        assert_eq!(p.stats().junk_bytes, 7);
+        assert_eq!(p.stats().frames, 2);
+    }
+
+    #[test]
+    fn corrupt_length_does_not_swallow_the_next_frame() {
+        // The original trusted the length byte: a corrupt one ate the following frames.
+        let mut bad = heartbeat(1);
+        bad[1] = 200; // length beyond HEARTBEAT's: rejected at the header
+        let mut stream = bad.clone();
+        stream.extend(heartbeat(2));
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&stream, &mut log);
+        assert_eq!(log.frames, [(bad.len() as u64, 2)]);
+        assert_eq!(
+            log.rejected,
+            [(0, Rejection::BadLength { id: 0, len: 200 })]
+        );
+    }
+
+    #[test]
+    fn bad_crc_frame_is_dropped_and_the_next_one_found_across_chunks() {
+        let mut bad = heartbeat(1);
+        let last = bad.len() - 1;
+        bad[last] ^= 0xff;
+        let mut stream = bad;
+        stream.extend(heartbeat(2));
+        for chunk in 1..stream.len() {
+            let mut p = Parser::new();
+            let mut log = Log::default();
+            for c in stream.chunks(chunk) {
+                p.feed_events(c, &mut log);
+            }
+            assert_eq!(log.frames, [(21, 2)], "chunk size {chunk}");
+            assert_eq!(p.stats().bad_crc, 1);
+        }
+    }
+
+    #[test]
+    fn a_longer_bogus_candidate_yields_to_the_frames_inside_it() {
+        // 0xFE 0xFE ... 0x6E starts a v1 FILE_TRANSFER_PROTOCOL candidate claiming 262
+        // bytes; the valid frame inside it must come out when the stream ends.
+        let mut stream = vec![0xfe, 0xfe, 0xfd, 0xfd, 0xfd, 0x6e];
+        stream.extend(heartbeat(9));
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&stream, &mut log);
+        assert!(log.frames.is_empty(), "the candidate may still complete");
+        assert_eq!(p.pending_offset(), Some(0));
+        p.finish(&mut log);
+        assert_eq!(log.frames, [(6, 9)]);
+        assert_eq!(
+            log.rejected[0].1,
+            Rejection::Truncated {
+                needed: 262,
+                have: 27
+            }
+        );
+        assert_eq!(p.pending_len(), 0);
+    }
+
+    #[test]
+    fn unknown_ids_and_flags_are_counted() {
+        let mut unknown = heartbeat(1);
+        unknown[7] = 0xff;
+        unknown[8] = 0xff; // id 0x00ffff: not in the dialect
+        let mut flags = heartbeat(2);
+        flags[2] = 0x80;
+        let mut stream = unknown;
+        stream.extend(flags);
+        stream.extend(heartbeat(3));
+        let mut p = Parser::new();
+        let mut seqs = Vec::new();
+        p.feed(&stream, |f| seqs.push(f.seq()));
+        assert_eq!(seqs, [3]);
+        assert_eq!((p.stats().unknown_id, p.stats().bad_flags), (1, 1));
+    }
+
+    #[test]
+    fn clear_drops_a_partial_frame() {
+        let hb = heartbeat(1);
+        let mut p = Parser::new();
+        let mut n = 0;
+        p.feed(&hb[..10], |_| n += 1);
+        assert_eq!(p.pending_len(), 10);
+        p.clear();
+        p.feed(&hb[10..], |_| n += 1);
+        p.feed(&hb, |_| n += 1);
+        assert_eq!(n, 1);
+        assert_eq!(p.stats().junk_bytes, 10 + (hb.len() - 10) as u64);
+    }
+
+    #[test]
+    fn v1_and_signed_v2_frames_back_to_back() {
+        let key = [1u8; 32];
+        let mut stream = Vec::new();
+        let header = Header {
+            seq: 5,
+            system: 10,
+            component: 10,
+        };
+        encode_v1(header, 0, &[0, 0, 0, 0, 6, 8, 0, 0, 3], &mut stream).expect("encodable");
+        let signing = crate::wire::encode::Signing {
+            key: &key,
+            link_id: 1,
+            timestamp: 42,
+        };
+        encode_v2(
+            header,
+            0,
+            &[0, 0, 0, 0, 6, 8, 0, 0, 3],
+            Some(signing),
+            &mut stream,
+        )
+        .expect("encodable");
+        let mut p = Parser::new();
+        let mut seen = Vec::new();
+        p.feed(&stream, |f| {
+            seen.push((f.version(), f.is_signed(), f.as_bytes().len()))
+        });
+        use crate::wire::Version;
+        assert_eq!(seen, [(Version::V1, false, 17), (Version::V2, true, 34)]);
+    }
+}
