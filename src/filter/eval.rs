@@ -95,7 +95,7 @@ impl Evaluator {
                     if !rule.condition.matches(message_id, source, dest) {
                         continue;
                     }
-                    let entry = match rule.action {
+                    match rule.action {
                         Action::Accept => Outcome::Accept(rule.priority),
                         Action::Reject => Outcome::Reject,
                         Action::Call(_) | Action::Goto(_) if self.stack.len() >= depth_limit => {
@@ -110,8 +110,7 @@ impl Evaluator {
                             self.push(c.0, Entry::Goto(rule.priority));
                             continue;
                         }
-                    };
-                    entry
+                    }
                 }
             };
             // Hand the result to the rule that entered the chain, and on up while decided.
