@@ -1,0 +1,149 @@
+//! What the router reports for logging, and the original's exact log texts (spec §7.2).
+//!
+//! `Display` renders the message without the `YYYY-MM-DD HH:MM:SS  ` prefix, which the I/O
+//! layer adds; an event of [`Event::level`] L is printed iff the log level is at least L.
+
+use std::fmt;
+use std::sync::Arc;
+
+use super::link::LinkId;
+use crate::address::Address;
+use crate::wire::{Frame, Version};
+
+/// The parts of a packet its log text shows: `NAME (#id) from S.C[ to S.C] (vN.0)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PacketSummary {
+    /// Message name.
+    pub name: &'static str,
+    /// Message id.
+    pub message_id: u32,
+    /// Sender's address.
+    pub source: Address,
+    /// Destination from the payload's target fields, if the message has them.
+    pub target: Option<Address>,
+    /// MAVLink version.
+    pub version: Version,
+}
+
+impl PacketSummary {
+    /// The summary of `frame`.
+    pub fn of(frame: &Frame<'_>) -> Self {
+        PacketSummary {
+            name: frame.name(),
+            message_id: frame.message_id(),
+            source: frame.source(),
+            target: frame.target(),
+            version: frame.version(),
+        }
+    }
+}
+
+impl fmt::Display for PacketSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} (#{}) from {}",
+            self.name, self.message_id, self.source
+        )?;
+        if let Some(to) = self.target {
+            write!(f, " to {to}")?;
+        }
+        let v = match self.version {
+            Version::V1 => 1,
+            Version::V2 => 2,
+        };
+        write!(f, " (v{v}.0)")
+    }
+}
+
+/// A link as named in an event.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LinkRef {
+    /// The link's id.
+    pub id: LinkId,
+    /// The link's name at the time of the event.
+    pub name: Arc<str>,
+}
+
+/// Something the router did that the log may show.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Event {
+    /// Level 1: an address was learned (or preloaded) on a link where it was not present.
+    NewComponent {
+        /// The address.
+        address: Address,
+        /// Where it was learned.
+        link: LinkRef,
+    },
+    /// Level 2: a valid packet arrived.
+    Received {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+    },
+    /// Level 3: the filter let the packet out to a link (it was queued there).
+    Accepted {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+        /// Where it goes.
+        dest: LinkRef,
+        /// Its priority in the destination's queue.
+        priority: i32,
+    },
+    /// Level 3: the filter kept the packet from a link.
+    Rejected {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+        /// Where it did not go.
+        dest: LinkRef,
+    },
+}
+
+impl Event {
+    /// The lowest log level (1–3) at which the original prints this event.
+    pub fn level(&self) -> u8 {
+        match self {
+            Event::NewComponent { .. } => 1,
+            Event::Received { .. } => 2,
+            Event::Accepted { .. } | Event::Rejected { .. } => 3,
+        }
+    }
+}
+
+/// The original's log message, without the timestamp prefix.
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Event::NewComponent { address, link } => {
+                write!(f, "new component {address} on {}", link.name)
+            }
+            Event::Received { packet, source } => {
+                write!(f, "received {packet} source {}", source.name)
+            }
+            Event::Accepted {
+                packet,
+                source,
+                dest,
+                ..
+            } => write!(
+                f,
+                "accepted {packet} source {} dest {}",
+                source.name, dest.name
+            ),
+            Event::Rejected {
+                packet,
+                source,
+                dest,
+            } => write!(
+                f,
+                "rejected {packet} source {} dest {}",
+                source.name, dest.name
+            ),
+        }
+    }
+}
