@@ -49,7 +49,10 @@ fn three_hundred_rules() -> String {
     }
     s += "chain last {\n";
     while rules < 299 {
-        s += &format!("    reject if GLOBAL_POSITION_INT from {}.1;\n", rules % 250);
+        s += &format!(
+            "    reject if GLOBAL_POSITION_INT from {}.1;\n",
+            rules % 250
+        );
         rules += 1;
     }
     s += "    accept with priority 2 if ATTITUDE from 200.0/8;\n}\n";
@@ -144,8 +147,14 @@ fn main() {
     let bytes = encode(30, 200, 1); // ATTITUDE, no target: a broadcast
     let frame = Frame::parse_exact(&bytes).expect("frame");
     let mut variants = [
-        ("1 rule,    memo   ", setup(ONE_RULE, mavtables::filter::cache::DEFAULT_SLOTS)),
-        ("300 rules, memo   ", setup(&big, mavtables::filter::cache::DEFAULT_SLOTS)),
+        (
+            "1 rule,    memo   ",
+            setup(ONE_RULE, mavtables::filter::cache::DEFAULT_SLOTS),
+        ),
+        (
+            "300 rules, memo   ",
+            setup(&big, mavtables::filter::cache::DEFAULT_SLOTS),
+        ),
         ("1 rule,    no memo", setup(ONE_RULE, 0)),
         ("300 rules, no memo", setup(&big, 0)),
     ];
@@ -179,5 +188,8 @@ fn main() {
     );
     let (_, s) = &variants[1];
     let stats = s.router.filter_stats();
-    println!("  memo (300 rules): {} hits, {} misses", stats.hits, stats.misses);
+    println!(
+        "  memo (300 rules): {} hits, {} misses",
+        stats.hits, stats.misses
+    );
 }

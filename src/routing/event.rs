@@ -147,3 +147,110 @@ impl fmt::Display for Event {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn link(id: u64, name: &str) -> LinkRef {
+        LinkRef {
+            id: LinkId(id),
+            name: name.into(),
+        }
+    }
+
+    fn ping(target: Option<Address>, version: Version) -> PacketSummary {
+        PacketSummary {
+            name: "PING",
+            message_id: 4,
+            source: Address::new(192, 168),
+            target,
+            version,
+        }
+    }
+
+    #[test]
+    fn texts_and_levels_match_the_original() {
+        let new = Event::NewComponent {
+            address: Address::new(127, 1),
+            link: link(0, "127.0.0.1:43009"),
+        };
+        assert_eq!(new.to_string(), "new component 127.1 on 127.0.0.1:43009");
+        assert_eq!(new.level(), 1);
+        let received = Event::Received {
+            packet: ping(Some(Address::new(127, 1)), Version::V2),
+            source: link(1, "./ttyS0"),
+        };
+        assert_eq!(
+            received.to_string(),
+            "received PING (#4) from 192.168 to 127.1 (v2.0) source ./ttyS0"
+        );
+        assert_eq!(received.level(), 2);
+        let accepted = Event::Accepted {
+            packet: PacketSummary {
+                name: "PARAM_REQUEST_READ",
+                message_id: 20,
+                source: Address::new(10, 10),
+                target: Some(Address::new(192, 168)),
+                version: Version::V2,
+            },
+            source: link(2, "127.0.0.1:5000"),
+            dest: link(3, "127.0.0.1:5001"),
+            priority: 0,
+        };
+        assert_eq!(
+            accepted.to_string(),
+            "accepted PARAM_REQUEST_READ (#20) from 10.10 to 192.168 (v2.0) source 127.0.0.1:5000 dest 127.0.0.1:5001"
+        );
+        assert_eq!(accepted.level(), 3);
+        let rejected = Event::Rejected {
+            packet: PacketSummary {
+                name: "HEARTBEAT",
+                message_id: 0,
+                source: Address::new(127, 1),
+                target: None,
+                version: Version::V2,
+            },
+            source: link(2, "127.0.0.1:5000"),
+            dest: link(0, "./ttyS0"),
+        };
+        assert_eq!(
+            rejected.to_string(),
+            "rejected HEARTBEAT (#0) from 127.1 (v2.0) source 127.0.0.1:5000 dest ./ttyS0"
+        );
+        assert_eq!(rejected.level(), 3);
+    }
+
+    #[test]
+    fn packet_text_prints_to_0_0_and_v1() {
+        assert_eq!(
+            ping(Some(Address::new(0, 0)), Version::V1).to_string(),
+            "PING (#4) from 192.168 to 0.0 (v1.0)"
+        );
+        assert_eq!(
+            ping(None, Version::V2).to_string(),
+            "PING (#4) from 192.168 (v2.0)"
+        );
+    }
+
+    #[test]
+    fn summary_of_a_frame_renders_like_the_frame() {
+        let mut bytes = Vec::new();
+        let payload = [0x55u8; 14];
+        crate::wire::encode::encode_v2(
+            crate::wire::encode::Header {
+                seq: 1,
+                system: 0,
+                component: 255,
+            },
+            4,
+            &payload,
+            None,
+            &mut bytes,
+        )
+        .expect("encode");
+        let frame = Frame::parse_exact(&bytes).expect("frame");
+        assert_eq!(PacketSummary::of(&frame).to_string(), frame.to_string());
+        assert_eq!(frame.to_string(), "PING (#4) from 0.255 to 85.85 (v2.0)");
+    }
+}
