@@ -37,7 +37,7 @@ impl Timestamp {
         self.0
     }
 
-    /// Nanoseconds since the start (saturating at `u128` range, which is never reached).
+    /// Nanoseconds since the start.
     pub const fn as_nanos(self) -> u128 {
         self.0.as_nanos()
     }
