@@ -1,2 +1,91 @@
 //! The packet filter: chains of `accept` / `reject` / `call` / `goto` rules evaluated for
-//! every (packet, destination address) pair. Filled in by the routing-core issue.
+//! every (packet, destination address) pair, exactly as the original (spec §2).
+//!
+//! The result of the filter depends only on the packet's message id, its source address
+//! and the destination address being filtered for, so [`Filter`] memoizes it in a small
+//! bounded cache ([`cache`]): a router that evaluates the filter once per candidate
+//! address per link pays the rule walk ([`eval`]) only for the first packet of each
+//! (message id, source, destination) triple, however many rules the configuration has.
+//!
+//! ```
+//! use mavtables::address::Address;
+//! use mavtables::filter::{Filter, Verdict};
+//!
+//! let config = mavtables::config::load("chain default { accept with priority 3 if PING; }")
+//!     .unwrap()
+//!     .config;
+//! let mut filter = Filter::new(&config);
+//! let (src, dest) = (Address::new(1, 1), Address::new(2, 1));
+//! assert_eq!(filter.check(4, src, dest), Verdict::Accept(3)); // PING
+//! assert_eq!(filter.check(0, src, dest), Verdict::Reject); // HEARTBEAT: default_action
+//! ```
+
+pub mod cache;
+pub mod eval;
+
+use crate::address::Address;
+use crate::config::Config;
+
+pub use cache::{CacheStats, VerdictCache};
+pub use eval::Evaluator;
+
+/// The filter's answer for one (packet, destination address) pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Verdict {
+    /// Forward with this priority (larger = more important; unset priorities are 0).
+    Accept(i32),
+    /// Do not forward to this address.
+    Reject,
+}
+
+impl Verdict {
+    /// The priority if accepted.
+    pub fn priority(self) -> Option<i32> {
+        match self {
+            Verdict::Accept(p) => Some(p),
+            Verdict::Reject => None,
+        }
+    }
+}
+
+/// The configuration's chains and default action, with a memo of past verdicts.
+#[derive(Debug, Clone)]
+pub struct Filter {
+    evaluator: Evaluator,
+    cache: VerdictCache,
+}
+
+impl Filter {
+    /// Builds the filter of `config` with a cache of [`cache::DEFAULT_SLOTS`] entries.
+    pub fn new(config: &Config) -> Self {
+        Filter {
+            evaluator: Evaluator::new(config),
+            cache: VerdictCache::new(cache::DEFAULT_SLOTS),
+        }
+    }
+
+    /// Builds the filter of `config` with a cache of (at least) `slots` entries; 0 turns
+    /// memoization off.
+    pub fn with_cache_slots(config: &Config, slots: usize) -> Self {
+        Filter {
+            evaluator: Evaluator::new(config),
+            cache: VerdictCache::new(slots),
+        }
+    }
+
+    /// The verdict for a packet with `message_id` from `source`, filtered for `dest`.
+    #[inline]
+    pub fn check(&mut self, message_id: u32, source: Address, dest: Address) -> Verdict {
+        if let Some(v) = self.cache.get(message_id, source, dest) {
+            return v;
+        }
+        let v = self.evaluator.evaluate(message_id, source, dest);
+        self.cache.insert(message_id, source, dest, v);
+        v
+    }
+
+    /// Hits and misses of the memo so far.
+    pub fn cache_stats(&self) -> CacheStats {
+        self.cache.stats()
+    }
+}

@@ -1,0 +1,148 @@
+//! A bounded memo of filter verdicts keyed by (message id, source, destination).
+//!
+//! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was
+//! there. Memory is fixed at construction (16 bytes a slot); a lookup is one multiply,
+//! one load and one compare, so it costs the same whether the configuration has one rule
+//! or hundreds.
+
+use super::Verdict;
+use crate::address::Address;
+
+/// Slots in the default cache (64 KiB): far more than the distinct (message, source,
+/// destination) triples a real MAVLink network produces, small enough to stay in L2.
+pub const DEFAULT_SLOTS: usize = 4096;
+
+/// Marks an occupied slot; message ids use only the low 24 bits of their 32.
+const VALID: u64 = 1 << 63;
+
+/// Lookup counters of a [`VerdictCache`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CacheStats {
+    /// Lookups answered from the memo.
+    pub hits: u64,
+    /// Lookups that needed a rule walk.
+    pub misses: u64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    key: u64,
+    verdict: Verdict,
+}
+
+/// Fixed-size, direct-mapped verdict memo.
+#[derive(Debug, Clone)]
+pub struct VerdictCache {
+    slots: Box<[Slot]>,
+    shift: u32,
+    stats: CacheStats,
+}
+
+impl VerdictCache {
+    /// A cache of `slots` entries rounded up to a power of two; 0 disables it.
+    pub fn new(slots: usize) -> Self {
+        let n = if slots == 0 {
+            0
+        } else {
+            slots.next_power_of_two()
+        };
+        let empty = Slot {
+            key: 0,
+            verdict: Verdict::Reject,
+        };
+        VerdictCache {
+            slots: vec![empty; n].into_boxed_slice(),
+            shift: 64 - n.max(1).trailing_zeros(),
+            stats: CacheStats::default(),
+        }
+    }
+
+    #[inline]
+    fn key(message_id: u32, source: Address, dest: Address) -> u64 {
+        VALID
+            | (u64::from(message_id) << 32)
+            | (u64::from(source.to_u16()) << 16)
+            | u64::from(dest.to_u16())
+    }
+
+    #[inline]
+    fn index(&self, key: u64) -> usize {
+        // Fibonacci hashing; with one slot the shift is 64, so use checked_shr.
+        key.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .checked_shr(self.shift)
+            .unwrap_or(0) as usize
+    }
+
+    /// The remembered verdict, if any.
+    #[inline]
+    pub fn get(&mut self, message_id: u32, source: Address, dest: Address) -> Option<Verdict> {
+        let key = Self::key(message_id, source, dest);
+        let i = self.index(key);
+        match self.slots.get(i) {
+            Some(s) if s.key == key => {
+                self.stats.hits += 1;
+                Some(s.verdict)
+            }
+            _ => {
+                self.stats.misses += 1;
+                None
+            }
+        }
+    }
+
+    /// Remembers `verdict`, replacing the slot's previous entry.
+    #[inline]
+    pub fn insert(&mut self, message_id: u32, source: Address, dest: Address, verdict: Verdict) {
+        let key = Self::key(message_id, source, dest);
+        let i = self.index(key);
+        if let Some(s) = self.slots.get_mut(i) {
+            *s = Slot { key, verdict };
+        }
+    }
+
+    /// Hits and misses so far.
+    pub fn stats(&self) -> CacheStats {
+        self.stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn a(s: u8, c: u8) -> Address {
+        Address::new(s, c)
+    }
+
+    #[test]
+    fn remembers_and_counts() {
+        let mut c = VerdictCache::new(16);
+        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
+        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(7));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2)), Some(Verdict::Accept(7)));
+        assert_eq!(c.get(4, a(1, 1), a(2, 3)), None);
+        assert_eq!(c.stats(), CacheStats { hits: 1, misses: 2 });
+    }
+
+    #[test]
+    fn zero_slots_never_remembers() {
+        let mut c = VerdictCache::new(0);
+        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(7));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
+    }
+
+    #[test]
+    fn one_slot_keeps_the_latest() {
+        let mut c = VerdictCache::new(1);
+        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(1));
+        c.insert(5, a(1, 1), a(2, 2), Verdict::Reject);
+        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
+        assert_eq!(c.get(5, a(1, 1), a(2, 2)), Some(Verdict::Reject));
+    }
+
+    #[test]
+    fn zeroed_slots_do_not_match_id_zero_from_zero_to_zero() {
+        let mut c = VerdictCache::new(8);
+        assert_eq!(c.get(0, a(0, 0), a(0, 0)), None);
+    }
+}

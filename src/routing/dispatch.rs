@@ -1,0 +1,86 @@
+//! The per-link decision of spec §1.3: which destination addresses a packet is filtered
+//! for on one link, and what comes of it.
+
+use super::pool::AddressPool;
+use super::time::Timestamp;
+use crate::address::Address;
+use crate::filter::{Filter, Verdict};
+
+/// The outcome of offering a packet to one link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// Dropped without a log line: the link already reaches the sender (loop prevention),
+    /// or the packet targets a system the link does not know.
+    Silent,
+    /// The filter accepted it for at least one candidate address; the highest priority.
+    Accept(i32),
+    /// The filter rejected it for every candidate address, or a broadcast met an empty pool.
+    Reject,
+}
+
+/// Decides what happens to a packet with `message_id` from `source`, whose payload targets
+/// `target`, on a link whose addresses are `pool`.
+#[inline]
+pub fn decide(
+    filter: &mut Filter,
+    pool: &AddressPool,
+    now: Timestamp,
+    message_id: u32,
+    source: Address,
+    target: Option<Address>,
+) -> Decision {
+    if pool.contains(source, now) {
+        return Decision::Silent;
+    }
+    match target {
+        // Broadcast: every address of the pool; an empty pool gives "rejected".
+        None
+        | Some(Address {
+            system: 0,
+            component: 0,
+        }) => best(filter, pool.addresses(now), message_id, source),
+        // System broadcast S.0: every address of system S; none known is silent.
+        Some(Address {
+            system,
+            component: 0,
+        }) => {
+            let mut of_system = pool
+                .addresses(now)
+                .filter(|a| a.system == system)
+                .peekable();
+            if of_system.peek().is_none() {
+                return Decision::Silent;
+            }
+            best(filter, of_system, message_id, source)
+        }
+        // Targeted S.C: filtered once for S.C itself if present, or (component-broadcast
+        // fallback) if any component of S is present; otherwise silent.
+        Some(dest) => {
+            let reachable = pool.addresses(now).any(|a| a.system == dest.system);
+            if !reachable {
+                return Decision::Silent;
+            }
+            match filter.check(message_id, source, dest) {
+                Verdict::Accept(p) => Decision::Accept(p),
+                Verdict::Reject => Decision::Reject,
+            }
+        }
+    }
+}
+
+/// Accepted if any candidate accepts, with the highest accepting priority.
+#[inline]
+fn best(
+    filter: &mut Filter,
+    candidates: impl Iterator<Item = Address>,
+    message_id: u32,
+    source: Address,
+) -> Decision {
+    let mut best: Option<i32> = None;
+    for dest in candidates {
+        if let Verdict::Accept(p) = filter.check(message_id, source, dest) {
+            best = Some(best.map_or(p, |b| b.max(p)));
+        }
+    }
+    best.map_or(Decision::Reject, Decision::Accept)
+}

@@ -1,0 +1,256 @@
+//! What the router reports for logging, and the original's exact log texts (spec §7.2).
+//!
+//! `Display` renders the message without the `YYYY-MM-DD HH:MM:SS  ` prefix, which the I/O
+//! layer adds; an event of [`Event::level`] L is printed iff the log level is at least L.
+
+use std::fmt;
+use std::sync::Arc;
+
+use super::link::LinkId;
+use crate::address::Address;
+use crate::wire::{Frame, Version};
+
+/// The parts of a packet its log text shows: `NAME (#id) from S.C[ to S.C] (vN.0)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PacketSummary {
+    /// Message name.
+    pub name: &'static str,
+    /// Message id.
+    pub message_id: u32,
+    /// Sender's address.
+    pub source: Address,
+    /// Destination from the payload's target fields, if the message has them.
+    pub target: Option<Address>,
+    /// MAVLink version.
+    pub version: Version,
+}
+
+impl PacketSummary {
+    /// The summary of `frame`.
+    pub fn of(frame: &Frame<'_>) -> Self {
+        PacketSummary {
+            name: frame.name(),
+            message_id: frame.message_id(),
+            source: frame.source(),
+            target: frame.target(),
+            version: frame.version(),
+        }
+    }
+}
+
+impl fmt::Display for PacketSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} (#{}) from {}",
+            self.name, self.message_id, self.source
+        )?;
+        if let Some(to) = self.target {
+            write!(f, " to {to}")?;
+        }
+        let v = match self.version {
+            Version::V1 => 1,
+            Version::V2 => 2,
+        };
+        write!(f, " (v{v}.0)")
+    }
+}
+
+/// A link as named in an event.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LinkRef {
+    /// The link's id.
+    pub id: LinkId,
+    /// The link's name at the time of the event.
+    pub name: Arc<str>,
+}
+
+/// Something the router did that the log may show.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Event {
+    /// Level 1: an address was learned (or preloaded) on a link where it was not present.
+    NewComponent {
+        /// The address.
+        address: Address,
+        /// Where it was learned.
+        link: LinkRef,
+    },
+    /// Level 2: a valid packet arrived.
+    Received {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+    },
+    /// Level 3: the filter let the packet out to a link (it was queued there).
+    Accepted {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+        /// Where it goes.
+        dest: LinkRef,
+        /// Its priority in the destination's queue.
+        priority: i32,
+    },
+    /// Level 3: the filter kept the packet from a link.
+    Rejected {
+        /// The packet.
+        packet: PacketSummary,
+        /// Where it came from.
+        source: LinkRef,
+        /// Where it did not go.
+        dest: LinkRef,
+    },
+}
+
+impl Event {
+    /// The lowest log level (1–3) at which the original prints this event.
+    pub fn level(&self) -> u8 {
+        match self {
+            Event::NewComponent { .. } => 1,
+            Event::Received { .. } => 2,
+            Event::Accepted { .. } | Event::Rejected { .. } => 3,
+        }
+    }
+}
+
+/// The original's log message, without the timestamp prefix.
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Event::NewComponent { address, link } => {
+                write!(f, "new component {address} on {}", link.name)
+            }
+            Event::Received { packet, source } => {
+                write!(f, "received {packet} source {}", source.name)
+            }
+            Event::Accepted {
+                packet,
+                source,
+                dest,
+                ..
+            } => write!(
+                f,
+                "accepted {packet} source {} dest {}",
+                source.name, dest.name
+            ),
+            Event::Rejected {
+                packet,
+                source,
+                dest,
+            } => write!(
+                f,
+                "rejected {packet} source {} dest {}",
+                source.name, dest.name
+            ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn link(id: u64, name: &str) -> LinkRef {
+        LinkRef {
+            id: LinkId(id),
+            name: name.into(),
+        }
+    }
+
+    fn ping(target: Option<Address>, version: Version) -> PacketSummary {
+        PacketSummary {
+            name: "PING",
+            message_id: 4,
+            source: Address::new(192, 168),
+            target,
+            version,
+        }
+    }
+
+    #[test]
+    fn texts_and_levels_match_the_original() {
+        let new = Event::NewComponent {
+            address: Address::new(127, 1),
+            link: link(0, "127.0.0.1:43009"),
+        };
+        assert_eq!(new.to_string(), "new component 127.1 on 127.0.0.1:43009");
+        assert_eq!(new.level(), 1);
+        let received = Event::Received {
+            packet: ping(Some(Address::new(127, 1)), Version::V2),
+            source: link(1, "./ttyS0"),
+        };
+        assert_eq!(
+            received.to_string(),
+            "received PING (#4) from 192.168 to 127.1 (v2.0) source ./ttyS0"
+        );
+        assert_eq!(received.level(), 2);
+        let accepted = Event::Accepted {
+            packet: PacketSummary {
+                name: "PARAM_REQUEST_READ",
+                message_id: 20,
+                source: Address::new(10, 10),
+                target: Some(Address::new(192, 168)),
+                version: Version::V2,
+            },
+            source: link(2, "127.0.0.1:5000"),
+            dest: link(3, "127.0.0.1:5001"),
+            priority: 0,
+        };
+        assert_eq!(
+            accepted.to_string(),
+            "accepted PARAM_REQUEST_READ (#20) from 10.10 to 192.168 (v2.0) source 127.0.0.1:5000 dest 127.0.0.1:5001"
+        );
+        assert_eq!(accepted.level(), 3);
+        let rejected = Event::Rejected {
+            packet: PacketSummary {
+                name: "HEARTBEAT",
+                message_id: 0,
+                source: Address::new(127, 1),
+                target: None,
+                version: Version::V2,
+            },
+            source: link(2, "127.0.0.1:5000"),
+            dest: link(0, "./ttyS0"),
+        };
+        assert_eq!(
+            rejected.to_string(),
+            "rejected HEARTBEAT (#0) from 127.1 (v2.0) source 127.0.0.1:5000 dest ./ttyS0"
+        );
+        assert_eq!(rejected.level(), 3);
+    }
+
+    #[test]
+    fn packet_text_prints_to_0_0_and_v1() {
+        assert_eq!(
+            ping(Some(Address::new(0, 0)), Version::V1).to_string(),
+            "PING (#4) from 192.168 to 0.0 (v1.0)"
+        );
+        assert_eq!(
+            ping(None, Version::V2).to_string(),
+            "PING (#4) from 192.168 (v2.0)"
+        );
+    }
+
+    #[test]
+    fn summary_of_a_frame_renders_like_the_frame() {
+        let mut bytes = Vec::new();
+        let payload = [0x55u8; 14];
+        crate::wire::encode::encode_v2(
+            crate::wire::encode::Header {
+                seq: 1,
+                system: 0,
+                component: 255,
+            },
+            4,
+            &payload,
+            None,
+            &mut bytes,
+        )
+        .expect("encode");
+        let frame = Frame::parse_exact(&bytes).expect("frame");
+        assert_eq!(PacketSummary::of(&frame).to_string(), frame.to_string());
+        assert_eq!(frame.to_string(), "PING (#4) from 0.255 to 85.85 (v2.0)");
+    }
+}

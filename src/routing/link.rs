@@ -1,0 +1,96 @@
+//! One link: a serial port, or one remote `ip:port` behind a UDP interface.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use super::pool::AddressPool;
+use super::queue::PacketQueue;
+use super::time::Timestamp;
+
+/// Identifies a link for as long as it exists; never reused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct LinkId(pub u64);
+
+/// What kind of connection a link is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinkKind {
+    /// A serial port: created at start, lives forever, may have preloaded addresses.
+    Serial,
+    /// A remote `ip:port` of a UDP interface: created by its first valid frame, removed
+    /// when its address pool has stayed empty for the expiry time.
+    Udp,
+}
+
+/// A link's name (for logs), kind, learned addresses and outgoing queue.
+#[derive(Debug, Clone)]
+pub struct Link {
+    id: LinkId,
+    name: Arc<str>,
+    kind: LinkKind,
+    pub(crate) pool: AddressPool,
+    pub(crate) queue: PacketQueue,
+    /// Creation time, or the last time an address was learned.
+    last_learned: Timestamp,
+}
+
+impl Link {
+    pub(crate) fn new(
+        id: LinkId,
+        name: &str,
+        kind: LinkKind,
+        expiry: Duration,
+        queue_capacity: usize,
+        now: Timestamp,
+    ) -> Self {
+        Link {
+            id,
+            name: name.into(),
+            kind,
+            pool: AddressPool::new(expiry),
+            queue: PacketQueue::new(queue_capacity),
+            last_learned: now,
+        }
+    }
+
+    /// The link's id.
+    pub fn id(&self) -> LinkId {
+        self.id
+    }
+
+    /// The name used in logs: the device as written, or `a.b.c.d:port`.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub(crate) fn shared_name(&self) -> Arc<str> {
+        self.name.clone()
+    }
+
+    /// Serial or UDP.
+    pub fn kind(&self) -> LinkKind {
+        self.kind
+    }
+
+    /// The addresses reachable through this link.
+    pub fn pool(&self) -> &AddressPool {
+        &self.pool
+    }
+
+    /// Packets waiting to be sent on this link.
+    pub fn queue(&self) -> &PacketQueue {
+        &self.queue
+    }
+
+    pub(crate) fn learn(&mut self, address: crate::address::Address, now: Timestamp) -> bool {
+        self.last_learned = self.last_learned.max(now);
+        self.pool.learn(address, now)
+    }
+
+    /// True for a UDP link whose pool has been empty for the expiry time at `now`: its
+    /// last address expired at `last_learned + expiry`, so it goes once `now` is more than
+    /// twice the expiry after the last learning (present at exactly that time, gone after).
+    pub(crate) fn is_stale(&self, now: Timestamp) -> bool {
+        self.kind == LinkKind::Udp
+            && now.saturating_since(self.last_learned) > self.pool.expiry().saturating_mul(2)
+    }
+}

@@ -1,0 +1,277 @@
+//! A link's outgoing packets: bounded, highest priority first, FIFO among equals.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
+
+/// The exact bytes of one received frame, shared by every link that forwards it.
+pub type Packet = Arc<[u8]>;
+
+/// Default queue capacity per link: 4 MiB.
+///
+/// Large enough that the original's heaviest integration test ("large packets": 10 000
+/// 267-byte frames, about 2.7 MB, arriving far faster than a 262 144 bit/s link drains
+/// them, every one of which must arrive) loses nothing, so configurations that worked with
+/// the original's unbounded queues keep working; small enough that even hundreds of links
+/// stay within a few hundred MiB under any overload.
+pub const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
+
+/// Bytes charged per packet on top of its length (shared-buffer header and queue slot),
+/// so that a flood of tiny packets is bounded too.
+pub const PACKET_OVERHEAD: usize = 32;
+
+/// What [`PacketQueue::push`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PushOutcome {
+    /// Queued; `evicted` older, lower-or-equal-priority packets were dropped to make room.
+    Queued {
+        /// Packets dropped to make room.
+        evicted: usize,
+    },
+    /// Not queued: the packets ahead of it (higher priority) fill the queue, or the packet
+    /// alone exceeds the capacity.
+    Dropped,
+}
+
+/// The packets of one priority, oldest first, with their total cost.
+#[derive(Debug, Clone, Default)]
+struct Bucket {
+    packets: VecDeque<Packet>,
+    bytes: usize,
+}
+
+/// Bounded priority queue of packets.
+///
+/// Order: higher priority first; equal priorities in arrival order. Bound: the sum of
+/// packet lengths plus [`PACKET_OVERHEAD`] each never exceeds the capacity. When a new
+/// packet does not fit, the lowest-priority, oldest packets are dropped until it does;
+/// if it still could not fit after dropping everything of its own priority or lower, the
+/// new packet itself is dropped instead (a new packet never displaces a higher-priority
+/// one). Every drop is counted.
+#[derive(Debug, Clone)]
+pub struct PacketQueue {
+    buckets: BTreeMap<i32, Bucket>,
+    bytes: usize,
+    len: usize,
+    capacity: usize,
+    dropped: u64,
+}
+
+impl PacketQueue {
+    /// An empty queue holding at most `capacity` bytes (see [`PACKET_OVERHEAD`]).
+    pub fn new(capacity: usize) -> Self {
+        PacketQueue {
+            buckets: BTreeMap::new(),
+            bytes: 0,
+            len: 0,
+            capacity,
+            dropped: 0,
+        }
+    }
+
+    fn cost(p: &Packet) -> usize {
+        p.len().saturating_add(PACKET_OVERHEAD)
+    }
+
+    /// Queues `packet` with `priority`, dropping lower-priority or older packets if full.
+    pub fn push(&mut self, packet: Packet, priority: i32) -> PushOutcome {
+        let cost = Self::cost(&packet);
+        let mut evicted = 0;
+        if self.bytes.saturating_add(cost) > self.capacity {
+            let ahead: usize = match priority.checked_add(1) {
+                Some(above) => self.buckets.range(above..).map(|(_, b)| b.bytes).sum(),
+                None => 0,
+            };
+            if ahead.saturating_add(cost) > self.capacity {
+                self.dropped += 1;
+                return PushOutcome::Dropped;
+            }
+            while self.bytes.saturating_add(cost) > self.capacity {
+                if self.take(true).is_none() {
+                    break; // unreachable: `ahead + cost` fits
+                }
+                self.dropped += 1;
+                evicted += 1;
+            }
+        }
+        self.bytes += cost;
+        self.len += 1;
+        let bucket = self.buckets.entry(priority).or_default();
+        bucket.bytes += cost;
+        bucket.packets.push_back(packet);
+        PushOutcome::Queued { evicted }
+    }
+
+    /// Removes the oldest packet of the lowest (`lowest`) or highest priority.
+    fn take(&mut self, lowest: bool) -> Option<Packet> {
+        let mut entry = if lowest {
+            self.buckets.first_entry()?
+        } else {
+            self.buckets.last_entry()?
+        };
+        let bucket = entry.get_mut();
+        let p = bucket.packets.pop_front();
+        if let Some(p) = &p {
+            let cost = Self::cost(p);
+            bucket.bytes -= cost;
+            self.bytes -= cost;
+            self.len -= 1;
+        }
+        if bucket.packets.is_empty() {
+            entry.remove();
+        }
+        p
+    }
+
+    /// The next packet to send, without removing it.
+    pub fn peek(&self) -> Option<&Packet> {
+        self.buckets
+            .last_key_value()
+            .and_then(|(_, b)| b.packets.front())
+    }
+
+    /// Removes and returns the next packet to send.
+    pub fn pop(&mut self) -> Option<Packet> {
+        self.take(false)
+    }
+
+    /// Packets queued.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when nothing is queued.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Bytes charged against the capacity.
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+
+    /// The capacity in bytes.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Packets dropped because the queue was full, since creation.
+    pub fn dropped(&self) -> u64 {
+        self.dropped
+    }
+}
+
+impl Default for PacketQueue {
+    fn default() -> Self {
+        PacketQueue::new(DEFAULT_CAPACITY)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pkt(tag: u8, len: usize) -> Packet {
+        let mut v = vec![0u8; len];
+        if let Some(b) = v.first_mut() {
+            *b = tag;
+        }
+        v.into()
+    }
+
+    fn tags(q: &mut PacketQueue) -> Vec<u8> {
+        std::iter::from_fn(|| q.pop()).map(|p| p[0]).collect()
+    }
+
+    /// Room for exactly `n` packets of `len` bytes.
+    fn cap(n: usize, len: usize) -> usize {
+        n * (len + PACKET_OVERHEAD)
+    }
+
+    #[test]
+    fn priority_then_fifo() {
+        let mut q = PacketQueue::default();
+        for (tag, prio) in [(1, 0), (2, 5), (3, 0), (4, -1), (5, 5), (6, 0)] {
+            q.push(pkt(tag, 10), prio);
+        }
+        assert_eq!(q.peek().map(|p| p[0]), Some(2));
+        assert_eq!(tags(&mut q), vec![2, 5, 1, 3, 6, 4]);
+        assert!(q.is_empty());
+        assert_eq!(q.bytes(), 0);
+    }
+
+    #[test]
+    fn full_queue_drops_lowest_priority_oldest() {
+        let mut q = PacketQueue::new(cap(3, 10));
+        q.push(pkt(1, 10), 0);
+        q.push(pkt(2, 10), -1);
+        q.push(pkt(3, 10), -1);
+        assert_eq!(q.push(pkt(4, 10), 0), PushOutcome::Queued { evicted: 1 });
+        assert_eq!(q.dropped(), 1);
+        assert_eq!(tags(&mut q), vec![1, 4, 3]);
+    }
+
+    #[test]
+    fn equal_priority_overflow_keeps_the_newest() {
+        let mut q = PacketQueue::new(cap(2, 10));
+        for tag in 1..=5 {
+            q.push(pkt(tag, 10), 0);
+        }
+        assert_eq!(q.dropped(), 3);
+        assert_eq!(tags(&mut q), vec![4, 5]);
+    }
+
+    #[test]
+    fn new_lower_priority_packet_never_displaces_higher() {
+        let mut q = PacketQueue::new(cap(2, 10));
+        q.push(pkt(1, 10), 5);
+        q.push(pkt(2, 10), 5);
+        assert_eq!(q.push(pkt(3, 10), 1), PushOutcome::Dropped);
+        assert_eq!(q.dropped(), 1);
+        assert_eq!(tags(&mut q), vec![1, 2]);
+    }
+
+    #[test]
+    fn a_packet_that_cannot_fit_evicts_nothing() {
+        let mut q = PacketQueue::new(cap(2, 10));
+        q.push(pkt(1, 10), 5);
+        q.push(pkt(2, 10), 0);
+        // 40 bytes would need the priority-5 packet gone: drop the newcomer, keep both.
+        assert_eq!(q.push(pkt(3, 40), 1), PushOutcome::Dropped);
+        assert_eq!(q.push(pkt(4, 1000), 9), PushOutcome::Dropped);
+        assert_eq!(tags(&mut q), vec![1, 2]);
+    }
+
+    #[test]
+    fn extreme_priorities() {
+        let mut q = PacketQueue::new(cap(2, 10));
+        q.push(pkt(1, 10), i32::MAX);
+        q.push(pkt(2, 10), i32::MIN);
+        q.push(pkt(3, 10), i32::MAX);
+        assert_eq!(tags(&mut q), vec![1, 3]);
+    }
+
+    #[test]
+    fn memory_stays_bounded_under_overload() {
+        let capacity = 10_000;
+        let mut q = PacketQueue::new(capacity);
+        let mut state = 12345u32;
+        for i in 0..100_000u32 {
+            state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            let len = 1 + (state >> 16) as usize % 280;
+            let prio = (state >> 8) as i32 % 4;
+            q.push(pkt(i as u8, len), prio);
+            assert!(q.bytes() <= capacity);
+            if i % 7 == 0 {
+                q.pop();
+            }
+        }
+        assert!(q.dropped() > 0);
+        let mut last = i32::MAX;
+        // Whatever is left still comes out in priority order.
+        let prios: Vec<i32> = q.buckets.keys().rev().copied().collect();
+        for p in prios {
+            assert!(p <= last);
+            last = p;
+        }
+    }
+}
