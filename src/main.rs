@@ -1,7 +1,8 @@
 //! The `mavtables` binary: handles the command line, then runs the router.
 
-use mavtables::cli::{Outcome, run};
 use std::process::ExitCode;
+
+use mavtables::cli::{Outcome, run};
 
 fn main() -> ExitCode {
     let args = std::env::args_os()
@@ -9,14 +10,8 @@ fn main() -> ExitCode {
         .collect();
     match run(args, &mut std::io::stdout(), &mut std::io::stderr()) {
         Outcome::Exit(code) => ExitCode::from(code),
-        Outcome::Run { path, config, .. } => {
-            eprintln!(
-                "mavtables: configuration {path} loaded ({} interfaces, {} chains); \
-                 the router itself is not implemented yet",
-                config.interfaces.len(),
-                config.chains.len()
-            );
-            ExitCode::SUCCESS
-        }
+        Outcome::Run {
+            config, options, ..
+        } => ExitCode::from(mavtables::io::run(&config, options.loglevel)),
     }
 }

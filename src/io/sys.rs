@@ -3,7 +3,10 @@
 //!
 //! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams in one system
 //!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did);
-//! - `localtime_r`: the local calendar time for log lines.
+//! - `localtime_r`: the local calendar time for log lines;
+//! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
+//!   own timeout has millisecond granularity);
+//! - turning a configured serial port into a non-blocking file for the event loop.
 //!
 //! Every function checks its inputs so that the pointers handed to the kernel always
 //! describe memory owned by the caller for the duration of the call.
@@ -167,6 +170,86 @@ pub fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
     ))
 }
 
+/// A monotonic one-shot timer as a file descriptor that becomes readable when it fires.
+pub struct TimerFd {
+    fd: std::os::fd::OwnedFd,
+}
+
+impl TimerFd {
+    /// A disarmed, non-blocking timer on `CLOCK_MONOTONIC`.
+    pub fn new() -> io::Result<Self> {
+        // SAFETY: plain system call with constant flags.
+        let fd = unsafe {
+            libc::timerfd_create(
+                libc::CLOCK_MONOTONIC,
+                libc::TFD_NONBLOCK | libc::TFD_CLOEXEC,
+            )
+        };
+        if fd < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        // SAFETY: `fd` was just returned by the kernel and is owned by nobody else.
+        Ok(TimerFd {
+            fd: unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) },
+        })
+    }
+
+    /// Fires once after `delay` (a zero delay fires at once); `None` disarms.
+    pub fn set(&self, delay: Option<std::time::Duration>) -> io::Result<()> {
+        let mut value = libc::itimerspec {
+            it_interval: libc::timespec {
+                tv_sec: 0,
+                tv_nsec: 0,
+            },
+            it_value: libc::timespec {
+                tv_sec: 0,
+                tv_nsec: 0,
+            },
+        };
+        if let Some(d) = delay {
+            // A zero it_value would disarm: fire after one nanosecond instead.
+            let d = d.max(std::time::Duration::from_nanos(1));
+            value.it_value.tv_sec = d.as_secs() as libc::time_t;
+            value.it_value.tv_nsec = d.subsec_nanos() as libc::c_long;
+        }
+        // SAFETY: `value` is a live local; the old value is not wanted (null).
+        let r =
+            unsafe { libc::timerfd_settime(self.fd.as_raw_fd(), 0, &value, std::ptr::null_mut()) };
+        if r < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        Ok(())
+    }
+
+    /// Clears a fired timer so it can fire again.
+    pub fn acknowledge(&self) {
+        let mut expirations = [0u8; 8];
+        // SAFETY: reads at most 8 bytes into a live local buffer; errors (EAGAIN when
+        // it had not fired) are of no interest.
+        let _ = unsafe { libc::read(self.fd.as_raw_fd(), expirations.as_mut_ptr().cast(), 8) };
+    }
+}
+
+impl AsRawFd for TimerFd {
+    fn as_raw_fd(&self) -> RawFd {
+        self.fd.as_raw_fd()
+    }
+}
+
+/// Takes over the file descriptor of a serial port configured by the `serialport` crate
+/// (raw mode, baud rate, flow control) as a non-blocking [`std::fs::File`].
+pub fn nonblocking_file(port: serialport::TTYPort) -> io::Result<std::fs::File> {
+    let fd = std::os::fd::IntoRawFd::into_raw_fd(port);
+    // SAFETY: `into_raw_fd` hands over sole ownership of an open descriptor.
+    let file = unsafe { <std::fs::File as std::os::fd::FromRawFd>::from_raw_fd(fd) };
+    // SAFETY: fcntl on a descriptor we own, with integer arguments only.
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) } < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(file)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -206,6 +289,30 @@ mod tests {
             recv_batch(&rx, &mut batch).err().map(|e| e.kind()),
             Some(io::ErrorKind::WouldBlock)
         );
+    }
+
+    #[test]
+    fn timer_fires_after_its_delay_and_can_be_disarmed() {
+        let t = TimerFd::new().expect("timerfd");
+        t.set(Some(std::time::Duration::from_millis(5)))
+            .expect("arm");
+        let start = std::time::Instant::now();
+        let mut buf = [0u8; 8];
+        loop {
+            // SAFETY (test): reading 8 bytes into a local buffer.
+            let n = unsafe { libc::read(t.as_raw_fd(), buf.as_mut_ptr().cast(), 8) };
+            if n == 8 {
+                break;
+            }
+            assert!(
+                start.elapsed() < std::time::Duration::from_secs(5),
+                "timer never fired"
+            );
+            std::thread::sleep(std::time::Duration::from_micros(200));
+        }
+        assert!(start.elapsed() >= std::time::Duration::from_millis(4));
+        t.set(None).expect("disarm");
+        t.acknowledge();
     }
 
     #[test]

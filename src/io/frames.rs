@@ -1,0 +1,58 @@
+//! Hands parsed frames to the routing core, creating links on demand, and reports
+//! unknown message ids once per id.
+
+use std::collections::HashSet;
+
+use crate::dialect::DIALECT_NAME;
+use crate::routing::{LinkId, Output, Router, Timestamp};
+use crate::wire::{Frame, ParseEvents, Rejection};
+
+use super::counters::LinkCounters;
+
+/// Message ids already reported as unknown (decisions row 2: once per id, not per frame).
+#[derive(Debug, Default)]
+pub struct UnknownIds(HashSet<u32>);
+
+impl UnknownIds {
+    /// Reports `id` on standard error the first time it is seen.
+    pub fn report(&mut self, id: u32) {
+        if self.0.insert(id) {
+            eprintln!("Packet ID (#{id}) is not part of the '{DIALECT_NAME}' MAVLink dialect.");
+        }
+    }
+}
+
+/// Where frames of a stream come from: gives the sender's link (a UDP interface creates
+/// links lazily, on the first valid frame of a remote) and its counters.
+pub trait Source {
+    /// The link of the stream's current sender, created if need be.
+    fn link(&mut self, router: &mut Router, now: Timestamp) -> (LinkId, &mut LinkCounters);
+}
+
+/// Parser events of one stream, routed through the core.
+pub struct ToRouter<'a, L> {
+    /// The routing core.
+    pub router: &'a mut Router,
+    /// Collects the core's output.
+    pub out: &'a mut Output,
+    /// The time of arrival.
+    pub now: Timestamp,
+    /// Unknown-id reporting.
+    pub unknown: &'a mut UnknownIds,
+    /// The link the bytes came from.
+    pub link: L,
+}
+
+impl<L: Source> ParseEvents for ToRouter<'_, L> {
+    fn frame(&mut self, frame: Frame<'_>) {
+        let (id, counters) = self.link.link(self.router, self.now);
+        counters.received(frame.as_bytes().len());
+        self.router.receive(id, &frame, self.now, self.out);
+    }
+
+    fn rejected(&mut self, _offset: u64, why: Rejection) {
+        if let Rejection::UnknownId(id) = why {
+            self.unknown.report(id);
+        }
+    }
+}

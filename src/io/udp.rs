@@ -1,0 +1,313 @@
+//! One `udp { }` interface: a non-blocking IPv4 socket, the remotes that have sent it a
+//! valid frame (each a link named `a.b.c.d:port`), batched receive and send, and the
+//! interface's `max_bitrate` pacer.
+
+use std::collections::{HashMap, VecDeque};
+use std::io;
+use std::net::{SocketAddr, SocketAddrV4};
+
+use mio::net::UdpSocket;
+use socket2::{Domain, Protocol, Socket, Type};
+
+use super::counters::{LinkCounters, LinkReport};
+use super::frames::{Source, ToRouter, UnknownIds};
+use super::log;
+use super::sys::{self, MAX_BATCH, RecvBatch};
+use crate::config::UdpInterface;
+use crate::routing::{LinkId, Output, Pace, Pacer, Packet, Router, Timestamp};
+use crate::wire::{Parser, ParserStats};
+
+/// Socket buffer sizes asked for, so bursts are not dropped by the kernel.
+const SOCKET_BUFFER: usize = 4 * 1024 * 1024;
+/// Datagrams longer than this are cut (a MAVLink frame is at most 280 bytes; several
+/// frames may share a datagram).
+const DATAGRAM_MAX: usize = 8192;
+/// Receive batches taken per wake-up before the loop gets a turn to send.
+const BATCHES_PER_TURN: usize = 8;
+
+/// A remote that has sent a valid frame.
+struct Remote {
+    address: SocketAddrV4,
+    name: String,
+    counters: LinkCounters,
+}
+
+/// A bound UDP interface and its remotes.
+pub struct UdpDriver {
+    /// `udp a.b.c.d:port` for messages.
+    pub label: String,
+    socket: UdpSocket,
+    parser: Parser,
+    last_sender: Option<SocketAddrV4>,
+    by_address: HashMap<SocketAddrV4, LinkId>,
+    remotes: HashMap<LinkId, Remote>,
+    /// Links in creation order, for round-robin sending.
+    order: Vec<LinkId>,
+    next_turn: usize,
+    pacer: Pacer,
+    in_flight: VecDeque<(SocketAddrV4, Packet)>,
+    batch: RecvBatch,
+    /// When the pacer next allows a datagram, if it is holding one back.
+    pub pace_deadline: Option<Timestamp>,
+    /// Receive or send errors other than "would block".
+    pub io_errors: u64,
+}
+
+/// Binds the socket of `config` (non-blocking, large buffers).
+fn bind(config: &UdpInterface) -> io::Result<UdpSocket> {
+    let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
+    // Larger buffers where the system allows; the defaults remain otherwise.
+    let _ = socket.set_recv_buffer_size(SOCKET_BUFFER);
+    let _ = socket.set_send_buffer_size(SOCKET_BUFFER);
+    socket.set_nonblocking(true)?;
+    let address = SocketAddr::V4(SocketAddrV4::new(config.address, config.port));
+    socket.bind(&address.into())?;
+    Ok(UdpSocket::from_std(socket.into()))
+}
+
+/// The link of the current sender, created on its first valid frame.
+struct Sender<'a> {
+    address: SocketAddrV4,
+    by_address: &'a mut HashMap<SocketAddrV4, LinkId>,
+    remotes: &'a mut HashMap<LinkId, Remote>,
+    order: &'a mut Vec<LinkId>,
+}
+
+impl Source for Sender<'_> {
+    fn link(&mut self, router: &mut Router, now: Timestamp) -> (LinkId, &mut LinkCounters) {
+        let address = self.address;
+        let order = &mut *self.order;
+        let id = *self.by_address.entry(address).or_insert_with(|| {
+            let id = router.add_udp_link(&address.to_string(), now);
+            order.push(id);
+            id
+        });
+        let remote = self.remotes.entry(id).or_insert_with(|| Remote {
+            address,
+            name: address.to_string(),
+            counters: LinkCounters::default(),
+        });
+        (id, &mut remote.counters)
+    }
+}
+
+impl UdpDriver {
+    /// Binds the interface's socket.
+    pub fn open(config: &UdpInterface) -> io::Result<Self> {
+        let socket = bind(config)?;
+        let rate = config.max_bitrate.unwrap_or(0);
+        Ok(UdpDriver {
+            label: format!("udp {}:{}", config.address, config.port),
+            socket,
+            parser: Parser::new(),
+            last_sender: None,
+            by_address: HashMap::new(),
+            remotes: HashMap::new(),
+            order: Vec::new(),
+            next_turn: 0,
+            pacer: Pacer::new(rate),
+            in_flight: VecDeque::new(),
+            batch: RecvBatch::new(DATAGRAM_MAX),
+            pace_deadline: None,
+            io_errors: 0,
+        })
+    }
+
+    /// The socket, to register with the poller.
+    pub fn socket_mut(&mut self) -> &mut UdpSocket {
+        &mut self.socket
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// Parser totals (checksum errors and the like) of this interface.
+    pub fn parser_stats(&self) -> &ParserStats {
+        self.parser.stats()
+    }
+
+    /// Reads datagrams and routes their frames. Returns true if more may be waiting
+    /// (the turn ended before the socket was drained).
+    pub fn receive(
+        &mut self,
+        router: &mut Router,
+        now: Timestamp,
+        out: &mut Output,
+        unknown: &mut UnknownIds,
+    ) -> bool {
+        for _ in 0..BATCHES_PER_TURN {
+            match sys::recv_batch(&self.socket, &mut self.batch) {
+                Ok(_) => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                // An ICMP "port unreachable" for an earlier datagram: not a receive problem.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => {
+                    self.io_errors += 1;
+                    log::error(&format_args!("{}: receive failed: {e}", self.label));
+                    return false;
+                }
+            }
+            let Self {
+                batch,
+                parser,
+                last_sender,
+                by_address,
+                remotes,
+                order,
+                ..
+            } = self;
+            for (from, bytes) in batch.iter() {
+                // Non-IPv4 senders are ignored, as in the original.
+                let Some(address) = from else { continue };
+                // A frame may continue in the sender's next datagram, but never in
+                // another sender's: partial frames of interleaved senders are dropped.
+                if *last_sender != Some(address) {
+                    parser.clear();
+                    *last_sender = Some(address);
+                }
+                let mut events = ToRouter {
+                    router: &mut *router,
+                    out: &mut *out,
+                    now,
+                    unknown: &mut *unknown,
+                    link: Sender {
+                        address,
+                        by_address: &mut *by_address,
+                        remotes: &mut *remotes,
+                        order: &mut *order,
+                    },
+                };
+                parser.feed_events(bytes, &mut events);
+            }
+        }
+        true
+    }
+
+    /// True if this interface owns link `id`.
+    pub fn owns(&self, id: LinkId) -> bool {
+        self.remotes.contains_key(&id)
+    }
+
+    /// Notes queue levels after routing, for the high-water marks.
+    pub fn note_queue(&mut self, id: LinkId, bytes: usize) {
+        if let Some(r) = self.remotes.get_mut(&id) {
+            r.counters.queue_level(bytes);
+        }
+    }
+
+    /// Forgets links the core removed (their pools stayed empty for the expiry time).
+    pub fn forget(&mut self, removed: &[LinkId]) {
+        for id in removed {
+            if let Some(r) = self.remotes.remove(id) {
+                self.by_address.remove(&r.address);
+                self.in_flight.retain(|(a, _)| *a != r.address);
+            }
+        }
+        self.order.retain(|id| self.remotes.contains_key(id));
+    }
+
+    /// The next link (round robin) with a packet waiting.
+    fn next_ready(&mut self, router: &Router) -> Option<LinkId> {
+        let n = self.order.len();
+        for k in 0..n {
+            let id = self.order[(self.next_turn + k) % n];
+            if router.peek(id).is_some() {
+                self.next_turn = (self.next_turn + k + 1) % n;
+                return Some(id);
+            }
+        }
+        None
+    }
+
+    /// Sends what the links' queues hold, round robin between remotes, as far as the
+    /// socket and the pacer allow. Sets [`UdpDriver::pace_deadline`] when the pacer
+    /// holds a datagram back.
+    pub fn flush(&mut self, router: &mut Router, now: Timestamp) {
+        self.pace_deadline = None;
+        loop {
+            while self.in_flight.len() < MAX_BATCH {
+                let Some(id) = self.next_ready(router) else {
+                    break;
+                };
+                let len = router.peek(id).map_or(0, |p| p.len());
+                match self.pacer.check(now, len) {
+                    Pace::Now => {}
+                    Pace::At(t) => {
+                        self.pace_deadline = Some(t);
+                        break;
+                    }
+                }
+                let (Some(packet), Some(remote)) = (router.pop(id), self.remotes.get(&id)) else {
+                    break;
+                };
+                self.pacer.sent(now, len);
+                self.in_flight.push_back((remote.address, packet));
+            }
+            if self.in_flight.is_empty() {
+                return;
+            }
+            let batch: Vec<(SocketAddrV4, &[u8])> =
+                self.in_flight.iter().map(|(a, p)| (*a, &p[..])).collect();
+            let wanted = batch.len();
+            match sys::send_batch(&self.socket, &batch) {
+                Ok(sent) => {
+                    for _ in 0..sent {
+                        if let Some((address, packet)) = self.in_flight.pop_front() {
+                            self.count_sent(address, packet.len());
+                        }
+                    }
+                    if sent < wanted {
+                        return; // the socket buffer is full: wait until writable
+                    }
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // A late ICMP error for an earlier datagram surfaced here; nothing was sent.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
+                Err(e) => {
+                    // This datagram cannot be sent (e.g. no route): count it, go on.
+                    self.io_errors += 1;
+                    if let Some((address, _)) = self.in_flight.pop_front() {
+                        log::error(&format_args!(
+                            "{}: sending to {address} failed: {e}",
+                            self.label
+                        ));
+                        if let Some(id) = self.by_address.get(&address)
+                            && let Some(r) = self.remotes.get_mut(id)
+                        {
+                            r.counters.send_errors += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn count_sent(&mut self, address: SocketAddrV4, len: usize) {
+        if let Some(id) = self.by_address.get(&address)
+            && let Some(r) = self.remotes.get_mut(id)
+        {
+            r.counters.sent(len);
+        }
+    }
+
+    /// True if nothing is waiting to be sent on this interface.
+    pub fn idle(&self, router: &Router) -> bool {
+        self.in_flight.is_empty() && self.order.iter().all(|id| router.peek(*id).is_none())
+    }
+
+    /// Reports of every remote, in creation order.
+    pub fn reports<'a>(&'a self, router: &'a Router) -> impl Iterator<Item = LinkReport<'a>> + 'a {
+        self.order.iter().filter_map(move |id| {
+            let r = self.remotes.get(id)?;
+            Some(LinkReport {
+                name: &r.name,
+                counters: r.counters,
+                queue_drops: router.link(*id).map_or(0, |l| l.queue().dropped()),
+            })
+        })
+    }
+}
