@@ -114,17 +114,18 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
 
 /// Sends `datagrams` (destination, bytes) without blocking, as many as the kernel takes
 /// in one call. Returns how many were sent (`WouldBlock` when none could be).
-pub fn send_batch(fd: &impl AsRawFd, datagrams: &[(SocketAddrV4, &[u8])]) -> io::Result<usize> {
-    let n = datagrams.len().min(MAX_BATCH);
-    if n == 0 {
-        return Ok(0);
-    }
+pub fn send_batch<'a>(
+    fd: &impl AsRawFd,
+    datagrams: impl IntoIterator<Item = (SocketAddrV4, &'a [u8])>,
+) -> io::Result<usize> {
     // SAFETY (all three): arrays of plain-old-data C structs; all-zero is valid.
     let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
     let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
     let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    for (i, (to, bytes)) in datagrams[..n].iter().enumerate() {
-        names[i] = to_sockaddr(*to);
+    let mut n = 0;
+    for (i, (to, bytes)) in datagrams.into_iter().take(MAX_BATCH).enumerate() {
+        n = i + 1;
+        names[i] = to_sockaddr(to);
         // The kernel only reads through this pointer (sendmmsg).
         iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
         iovs[i].iov_len = bytes.len();
@@ -132,6 +133,9 @@ pub fn send_batch(fd: &impl AsRawFd, datagrams: &[(SocketAddrV4, &[u8])]) -> io:
         msgs[i].msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
         msgs[i].msg_hdr.msg_iov = &mut iovs[i];
         msgs[i].msg_hdr.msg_iovlen = 1;
+    }
+    if n == 0 {
+        return Ok(0);
     }
     // SAFETY: every pointer refers to a local array or a borrowed slice that outlives
     // the call.
@@ -265,7 +269,7 @@ mod tests {
         };
         let payloads: Vec<Vec<u8>> = (0..10u8).map(|i| vec![i; 1 + i as usize]).collect();
         let dgs: Vec<(SocketAddrV4, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
-        assert_eq!(send_batch(&tx, &dgs).expect("send"), 10);
+        assert_eq!(send_batch(&tx, dgs.iter().copied()).expect("send"), 10);
         let mut batch = RecvBatch::new(2048);
         let mut got = Vec::new();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);

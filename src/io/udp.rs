@@ -249,10 +249,9 @@ impl UdpDriver {
             if self.in_flight.is_empty() {
                 return;
             }
-            let batch: Vec<(SocketAddrV4, &[u8])> =
-                self.in_flight.iter().map(|(a, p)| (*a, &p[..])).collect();
-            let wanted = batch.len();
-            match sys::send_batch(&self.socket, &batch) {
+            let wanted = self.in_flight.len();
+            let batch = self.in_flight.iter().map(|(a, p)| (*a, &p[..]));
+            match sys::send_batch(&self.socket, batch) {
                 Ok(sent) => {
                     for _ in 0..sent {
                         if let Some((address, packet)) = self.in_flight.pop_front() {
