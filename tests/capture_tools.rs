@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{data, read_data, run_py};
+use common::{Verdict, data, manifest, read_data, run_py};
 use mavtables::wire::Parser;
 use serialport::SerialPort;
 
@@ -31,28 +31,6 @@ fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mavtables-capture-tools-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch dir");
     dir.join(name)
-}
-
-/// (file name, expected verdict) for every vector of a manifest section, by column:
-/// `expected` (the name), or `strict` (strict-CRC).
-fn manifest(section: &str, strict: bool) -> Vec<(String, bool)> {
-    let manifest = String::from_utf8(read_data("MANIFEST.md")).expect("utf-8");
-    let mut rows = Vec::new();
-    let mut inside = false;
-    for line in manifest.lines() {
-        if line.starts_with("## ") {
-            inside = line.contains(section);
-        } else if inside && (line.starts_with("| pass.") || line.starts_with("| fail.")) {
-            let cols: Vec<&str> = line.split('|').map(str::trim).collect();
-            let verdict = if strict {
-                cols[cols.len() - 2]
-            } else {
-                cols[cols.len() - 4]
-            };
-            rows.push((cols[1].to_string(), verdict == "pass"));
-        }
-    }
-    rows
 }
 
 /// Runs `inspect --check EXTRA... FILES` once and returns each file's verdict.
@@ -85,7 +63,7 @@ fn verdicts(dir: &str, rows: &[(String, bool)], extra: &[&str]) -> Vec<(String, 
 
 #[test]
 fn seed_vectors_without_crc_pass_or_fail_as_named() {
-    let rows = manifest("seed_scaled_pressure", false);
+    let rows = manifest("seed_scaled_pressure", Verdict::Named);
     assert_eq!(rows.len(), 63);
     let got = verdicts(
         "seed_scaled_pressure",
@@ -97,7 +75,7 @@ fn seed_vectors_without_crc_pass_or_fail_as_named() {
 
 #[test]
 fn seed_vectors_with_crc_follow_the_strict_column() {
-    let rows = manifest("seed_scaled_pressure", true);
+    let rows = manifest("seed_scaled_pressure", Verdict::StrictCrc);
     let got = verdicts(
         "seed_scaled_pressure",
         &rows,
@@ -108,7 +86,7 @@ fn seed_vectors_with_crc_follow_the_strict_column() {
 
 #[test]
 fn full_vectors_follow_the_strict_column() {
-    let rows = manifest("mavlink_full", true);
+    let rows = manifest("mavlink_full", Verdict::StrictCrc);
     assert_eq!(rows.len(), 106);
     assert_eq!(verdicts("mavlink_full", &rows, &[]), rows);
 }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::read_data;
+use common::{Verdict, manifest, read_data};
 use mavtables::capture::{pcap, tlog};
 use mavtables::wire::{Frame, Parser};
 
@@ -21,29 +21,8 @@ fn strict_verdict(bytes: &[u8], only_id: Option<u32>) -> bool {
     ids_ok && s.rejected() == 0 && s.junk_bytes == 0 && parser.pending_len() == 0
 }
 
-/// (file name, strict-CRC verdict) rows of one section of the manifest.
-fn manifest_rows(section: &str) -> Vec<(String, bool)> {
-    let manifest = String::from_utf8(read_data("MANIFEST.md")).expect("utf-8");
-    let mut rows = Vec::new();
-    let mut inside = false;
-    for line in manifest.lines() {
-        if line.starts_with("## ") {
-            inside = line.contains(section);
-            continue;
-        }
-        if !inside || !(line.starts_with("| pass.") || line.starts_with("| fail.")) {
-            continue;
-        }
-        let cols: Vec<&str> = line.split('|').map(str::trim).collect();
-        let strict = cols[cols.len() - 2];
-        assert!(strict == "pass" || strict == "fail", "odd row: {line}");
-        rows.push((cols[1].to_string(), strict == "pass"));
-    }
-    rows
-}
-
 fn check_section(section: &str, dir: &str, only_id: Option<u32>, expected_rows: usize) {
-    let rows = manifest_rows(section);
+    let rows = manifest(section, Verdict::StrictCrc);
     assert_eq!(rows.len(), expected_rows, "manifest rows for {section}");
     let mut wrong = Vec::new();
     for (name, expected) in &rows {

@@ -84,3 +84,34 @@ pub fn unhex(s: &str) -> Vec<u8> {
         .map(|i| u8::from_str_radix(&s[i..i + 2], 16).expect("hex"))
         .collect()
 }
+
+/// Which verdict column of `tests/data/MANIFEST.md` to read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// The verdict the file name encodes (`pass.N` / `fail.N`): the grammar's, no CRC.
+    Named,
+    /// The strict framer's verdict: checksums with CRC_EXTRA checked.
+    StrictCrc,
+}
+
+/// (file name, verdict) for every vector of one manifest section (`seed_scaled_pressure`
+/// or `mavlink_full`).
+pub fn manifest(section: &str, column: Verdict) -> Vec<(String, bool)> {
+    let manifest = String::from_utf8(read_data("MANIFEST.md")).expect("utf-8");
+    let mut rows = Vec::new();
+    let mut inside = false;
+    for line in manifest.lines() {
+        if line.starts_with("## ") {
+            inside = line.contains(section);
+        } else if inside && (line.starts_with("| pass.") || line.starts_with("| fail.")) {
+            let cols: Vec<&str> = line.split('|').map(str::trim).collect();
+            let verdict = match column {
+                Verdict::StrictCrc => cols[cols.len() - 2],
+                Verdict::Named => cols[cols.len() - 4],
+            };
+            assert!(verdict == "pass" || verdict == "fail", "odd row: {line}");
+            rows.push((cols[1].to_string(), verdict == "pass"));
+        }
+    }
+    rows
+}
