@@ -4,6 +4,8 @@
 //! Run: `cargo bench --bench parser`. Variants are interleaved round by round so that
 //! machine noise hits them alike; the report gives medians and the ratios of medians.
 
+mod common;
+
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -74,19 +76,10 @@ fn theirs_datagrams(dgs: &[&[u8]]) -> usize {
     n
 }
 
-fn median(v: &mut [Duration]) -> Duration {
-    v.sort_unstable();
-    v[v.len() / 2]
-}
-
 fn main() {
     // `cargo bench` passes `--bench`; `cargo test --all-targets` runs benches as tests
     // with no argument: then one quick round checks that they work.
-    let rounds = if std::env::args().any(|a| a == "--bench") {
-        ROUNDS
-    } else {
-        1
-    };
+    let rounds = common::rounds(ROUNDS);
     let stream = flight();
     let dgs = datagrams(&stream);
     let frames = dgs.len();
@@ -107,7 +100,7 @@ fn main() {
             assert_eq!(n, frames, "{name} found {n} frames");
         }
     }
-    let medians: Vec<Duration> = times.iter_mut().map(|t| median(t)).collect();
+    let medians: Vec<Duration> = times.iter_mut().map(|t| common::median(t)).collect();
     println!(
         "parser benchmark: {} bytes, {frames} frames, {rounds} interleaved rounds, medians",
         stream.len()

@@ -5,6 +5,8 @@
 //! Run: `cargo bench --bench routing`. Variants are interleaved round by round so that
 //! machine noise hits them alike; the report gives medians and the ratios of medians.
 
+mod common;
+
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -132,17 +134,8 @@ fn run(s: &mut Setup, frame: &Frame<'_>, out: &mut Output) -> (Duration, usize) 
     (t, queued / BATCH)
 }
 
-fn median(v: &mut [Duration]) -> Duration {
-    v.sort_unstable();
-    v[v.len() / 2]
-}
-
 fn main() {
-    let rounds = if std::env::args().any(|a| a == "--bench") {
-        ROUNDS
-    } else {
-        1
-    };
+    let rounds = common::rounds(ROUNDS);
     let big = three_hundred_rules();
     let bytes = encode(30, 200, 1); // ATTITUDE, no target: a broadcast
     let frame = Frame::parse_exact(&bytes).expect("frame");
@@ -169,7 +162,7 @@ fn main() {
     }
     let per: Vec<f64> = times
         .iter_mut()
-        .map(|t| median(t).as_secs_f64() * 1e9 / BATCH as f64)
+        .map(|t| common::median(t).as_secs_f64() * 1e9 / BATCH as f64)
         .collect();
     println!(
         "routing benchmark: broadcast ATTITUDE to {LINKS} links x {ADDRESSES} addresses ({} filter checks), {rounds} interleaved rounds of {BATCH}, medians",
