@@ -882,7 +882,11 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
             t.sink_errors()
         );
         if !t.on_rate() {
-            row.stop = format!("generator reached only {}/s", fmt_rate(t.achieved()));
+            row.stop = format!(
+                "{}/s not reached: generator at most {}/s",
+                fmt_rate(rate),
+                fmt_rate(t.achieved())
+            );
             break;
         }
         if !t.zero_loss() {
