@@ -1,0 +1,1114 @@
+//! UDP forwarding benchmark (issue 5, item 8): a load generator and sinks of our own,
+//! on 127.0.0.1 only.
+//!
+//! Run: `cargo bench --bench forwarding` (about 2–3 minutes), or
+//! `cargo bench --bench forwarding -- --quick` (or `MAVTABLES_BENCH_QUICK=1`) for a short
+//! run. `cargo test --all-targets` runs this file with no `--bench` argument: then it only
+//! does a ~2 s smoke test of direct mode and never starts the router.
+//!
+//! The generator sends MAVLink 2 SYSTEM_TIME frames (24 bytes) from system
+//! [`GEN_SYSTEM`]: `time_unix_usec` carries the send time in ns since a shared
+//! [`Instant`], `time_boot_ms` the sequence number with [`SEQ_MARK`] set (so the last
+//! payload byte is never zero and every frame has the same length). Frames go out in
+//! bursts paced per millisecond (single frames up to 10k frames/s), each burst in
+//! `sendmmsg(2)` batches of up to 64 datagrams.
+//!
+//! Sinks (one thread and one socket each) parse with [`Parser`], detect loss and
+//! reordering by sequence number and record latency = receive time − send time. For
+//! throughput they read in batches every 0.5 ms; for latency they block on every frame.
+//!
+//! Figures, per mode and number of receivers: the highest rate of a ladder (25k … 1M
+//! frames/s, 2 s steps, a lossy step is retried once) with zero loss; CPU time per frame
+//! sent, of the router (`/proc/<pid>/stat`) and of this process, at 50k frames/s;
+//! latency p50/p99/p99.9 at 10k frames/s (medians of 3 rounds); the router's peak RSS
+//! (`VmHWM`) before and after 2 s at 10× its zero-loss rate.
+//!
+//! Modes: *direct* sends each frame straight to every sink (the machine's ceiling);
+//! *router* sends to `mavtables --config <temp file>`, which must forward to the sinks.
+//! Each sink announces itself with a HEARTBEAT (systems 101, 102, 103) to the router,
+//! once before the run and then every second; SYSTEM_TIME has no target, so the router
+//! forwards it to every link but the generator's.
+
+use std::io::{self, ErrorKind, Write};
+use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
+use std::os::fd::AsRawFd;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use mavtables::wire::encode::{Header, encode_v2};
+use mavtables::wire::{Frame, Parser};
+
+/// MAVLink system id of the generator.
+const GEN_SYSTEM: u8 = 1;
+/// System id of sink `i` is `SINK_SYSTEM + i`.
+const SINK_SYSTEM: u8 = 101;
+/// SYSTEM_TIME: `time_unix_usec` (u64) then `time_boot_ms` (u32), 12 payload bytes.
+const MSG_SYSTEM_TIME: u32 = 2;
+const MSG_HEARTBEAT: u32 = 0;
+/// Set in every sequence number on the wire: marks our frames and keeps them 24 bytes.
+const SEQ_MARK: u32 = 1 << 31;
+/// Largest datagram a sink reads.
+const DGRAM_MAX: usize = 2048;
+/// Rates tried when searching for the highest rate with zero loss, frames/s.
+const LADDER: [f64; 10] = [
+    25e3, 50e3, 100e3, 150e3, 200e3, 300e3, 400e3, 500e3, 700e3, 1e6,
+];
+/// Bursts are sent every millisecond, except at rates up to [`SINGLE_FRAME_RATE`]:
+/// there every frame goes out alone, every `1/rate` (at most every 1 ms), so that the
+/// latency runs measure a frame's own latency and not that of the frames queued ahead of
+/// it in its burst. (A tick costs the generator a wake-up, about 9 µs of CPU on this VM,
+/// hence no finer ticks at high rates.)
+const TICK: Duration = Duration::from_millis(1);
+const SINGLE_FRAME_RATE: f64 = 10e3;
+/// Rate of the latency runs (issue 5: latency at 10k frames/s).
+const LATENCY_RATE: f64 = 10e3;
+/// Fixed rate at which CPU time per frame is measured.
+const CPU_RATE: f64 = 50e3;
+
+/// The only unsafe code of the benchmark: thin wrappers over `libc` calls that `std`
+/// does not offer (batched send/receive, socket buffer size, clock ticks).
+mod sys {
+    use std::io;
+    use std::net::SocketAddrV4;
+    use std::os::fd::RawFd;
+
+    /// Most datagrams handed to the kernel in one call.
+    pub const BATCH: usize = 64;
+
+    fn sockaddr(a: SocketAddrV4) -> libc::sockaddr_in {
+        // SAFETY: sockaddr_in is plain old data; all zeroes is a valid value.
+        let mut s: libc::sockaddr_in = unsafe { std::mem::zeroed() };
+        s.sin_family = libc::AF_INET as libc::sa_family_t;
+        s.sin_port = a.port().to_be();
+        s.sin_addr.s_addr = u32::from(*a.ip()).to_be();
+        s
+    }
+
+    /// Sends up to [`BATCH`] `(datagram, destination)` pairs with one `sendmmsg(2)`;
+    /// returns how many were sent (always a prefix of `msgs`).
+    pub fn send_batch(fd: RawFd, msgs: &[(&[u8], SocketAddrV4)]) -> io::Result<usize> {
+        let n = msgs.len().min(BATCH);
+        let mut addrs = [sockaddr(SocketAddrV4::new(0.into(), 0)); BATCH];
+        let mut iovs = [libc::iovec {
+            iov_base: std::ptr::null_mut(),
+            iov_len: 0,
+        }; BATCH];
+        // SAFETY: mmsghdr is plain old data; all zeroes is a valid (empty) value.
+        let mut hdrs: [libc::mmsghdr; BATCH] = unsafe { std::mem::zeroed() };
+        for (i, (data, to)) in msgs[..n].iter().enumerate() {
+            addrs[i] = sockaddr(*to);
+            iovs[i].iov_base = data.as_ptr() as *mut libc::c_void;
+            iovs[i].iov_len = data.len();
+            hdrs[i].msg_hdr.msg_name = &mut addrs[i] as *mut _ as *mut libc::c_void;
+            hdrs[i].msg_hdr.msg_namelen = size_of::<libc::sockaddr_in>() as libc::socklen_t;
+            hdrs[i].msg_hdr.msg_iov = &mut iovs[i];
+            hdrs[i].msg_hdr.msg_iovlen = 1;
+        }
+        // SAFETY: the first n headers point at addresses and iovecs on this stack frame
+        // and at the caller's datagrams, all alive for the call; the kernel only reads
+        // them (and writes msg_len).
+        let r = unsafe { libc::sendmmsg(fd, hdrs.as_mut_ptr(), n as libc::c_uint, 0) };
+        if r < 0 {
+            Err(io::Error::last_os_error())
+        } else {
+            Ok(r as usize)
+        }
+    }
+
+    /// Receives up to [`BATCH`] datagrams with one `recvmmsg(2)`, waiting (up to the
+    /// socket's read timeout) for the first only; fills `lens` and returns the count.
+    pub fn recv_batch(
+        fd: RawFd,
+        bufs: &mut [[u8; super::DGRAM_MAX]; BATCH],
+        lens: &mut [usize; BATCH],
+    ) -> io::Result<usize> {
+        let mut iovs = [libc::iovec {
+            iov_base: std::ptr::null_mut(),
+            iov_len: 0,
+        }; BATCH];
+        // SAFETY: as in send_batch.
+        let mut hdrs: [libc::mmsghdr; BATCH] = unsafe { std::mem::zeroed() };
+        for (i, buf) in bufs.iter_mut().enumerate() {
+            iovs[i].iov_base = buf.as_mut_ptr() as *mut libc::c_void;
+            iovs[i].iov_len = buf.len();
+            hdrs[i].msg_hdr.msg_iov = &mut iovs[i];
+            hdrs[i].msg_hdr.msg_iovlen = 1;
+        }
+        // SAFETY: every header points at one iovec on this stack frame covering one of
+        // the caller's buffers, all alive and exclusively borrowed for the call.
+        let r = unsafe {
+            libc::recvmmsg(
+                fd,
+                hdrs.as_mut_ptr(),
+                BATCH as libc::c_uint,
+                libc::MSG_WAITFORONE,
+                std::ptr::null_mut(),
+            )
+        };
+        if r < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        let n = r as usize;
+        for (len, hdr) in lens.iter_mut().zip(&hdrs[..n]) {
+            *len = hdr.msg_len as usize;
+        }
+        Ok(n)
+    }
+
+    /// Asks for a receive buffer of `bytes` (the kernel doubles it for its bookkeeping):
+    /// beyond `net.core.rmem_max` if we may (root), else capped at it.
+    pub fn set_recv_buffer(fd: RawFd, bytes: usize) -> io::Result<()> {
+        let v = bytes as libc::c_int;
+        let mut r = -1;
+        for opt in [libc::SO_RCVBUFFORCE, libc::SO_RCVBUF] {
+            // SAFETY: passes a pointer to a live c_int and its size.
+            r = unsafe {
+                libc::setsockopt(
+                    fd,
+                    libc::SOL_SOCKET,
+                    opt,
+                    &v as *const _ as *const libc::c_void,
+                    size_of::<libc::c_int>() as libc::socklen_t,
+                )
+            };
+            if r == 0 {
+                break;
+            }
+        }
+        if r < 0 {
+            Err(io::Error::last_os_error())
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Clock ticks per second, the unit of `utime`/`stime` in `/proc/<pid>/stat`.
+    pub fn clock_ticks() -> u64 {
+        // SAFETY: sysconf has no preconditions.
+        let t = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
+        if t > 0 { t as u64 } else { 100 }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Frames
+
+/// Appends the benchmark frame `seq` stamped with `sent_ns` to `out`.
+fn encode_probe(seq: u32, sent_ns: u64, out: &mut Vec<u8>) {
+    let mut payload = [0u8; 12];
+    payload[..8].copy_from_slice(&sent_ns.to_le_bytes());
+    payload[8..].copy_from_slice(&(seq | SEQ_MARK).to_le_bytes());
+    let header = Header {
+        seq: seq as u8,
+        system: GEN_SYSTEM,
+        component: 1,
+    };
+    encode_v2(header, MSG_SYSTEM_TIME, &payload, None, out).expect("SYSTEM_TIME encodes");
+}
+
+/// `(seq, sent_ns)` of a benchmark frame; `None` for any other frame.
+fn decode_probe(frame: &Frame<'_>) -> Option<(u32, u64)> {
+    if frame.system() != GEN_SYSTEM || frame.message_id() != MSG_SYSTEM_TIME {
+        return None;
+    }
+    let p = frame.payload_padded();
+    let seq = u32::from_le_bytes(p[8..12].try_into().unwrap());
+    (seq & SEQ_MARK != 0).then(|| {
+        let sent = u64::from_le_bytes(p[..8].try_into().unwrap());
+        (seq & !SEQ_MARK, sent)
+    })
+}
+
+/// A ground-station HEARTBEAT from `system`, with which a sink makes itself known.
+fn heartbeat(system: u8) -> Vec<u8> {
+    // custom_mode 0, type GCS (6), autopilot INVALID (8), base_mode 0, state 0, version 3.
+    let payload = [0, 0, 0, 0, 6, 8, 0, 0, 3];
+    let header = Header {
+        seq: 0,
+        system,
+        component: 190,
+    };
+    let mut out = Vec::new();
+    encode_v2(header, MSG_HEARTBEAT, &payload, None, &mut out).expect("HEARTBEAT encodes");
+    out
+}
+
+/// Nanoseconds since the shared base instant.
+fn ns_since(base: Instant) -> u64 {
+    base.elapsed().as_nanos() as u64
+}
+
+// ---------------------------------------------------------------------------------------
+// Generator
+
+/// How the generator hands datagrams to the kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SendMode {
+    /// `sendmmsg(2)`, up to [`sys::BATCH`] datagrams per call.
+    Batched,
+    /// One `send_to` per datagram.
+    OneByOne,
+}
+
+/// What one generator run did.
+#[derive(Debug, Default, Clone, Copy)]
+struct GenReport {
+    /// Frames sent (each to every destination).
+    sent: u64,
+    /// Datagrams the kernel refused.
+    errors: u64,
+    /// From first to last send.
+    elapsed: Duration,
+}
+
+/// Sends frames numbered from `seq_start` to every address of `dests`, at `rate`
+/// frames/s (or as fast as possible with `None`) for `duration`, in bursts paced per
+/// tick (see [`TICK`]); a generator that falls behind stops after 1.5 × `duration`.
+fn generate(
+    sock: &UdpSocket,
+    dests: &[SocketAddrV4],
+    rate: Option<f64>,
+    duration: Duration,
+    seq_start: u32,
+    mode: SendMode,
+    base: Instant,
+) -> GenReport {
+    let total = rate.map(|r| (r * duration.as_secs_f64()).round() as u64);
+    let per_call = (sys::BATCH / dests.len()).max(1) as u64;
+    let deadline = duration.mul_f64(1.5);
+    let mut report = GenReport::default();
+    let mut buf = Vec::with_capacity(sys::BATCH * 24);
+    let start = Instant::now();
+    let mut ticks = 0u64;
+    loop {
+        let elapsed = start.elapsed();
+        let due = match (rate, total) {
+            (Some(r), Some(t)) if report.sent < t && elapsed < deadline => {
+                ((r * elapsed.as_secs_f64()).ceil() as u64).clamp(report.sent, t)
+            }
+            (None, _) if elapsed < duration => report.sent + per_call,
+            _ => break,
+        };
+        while report.sent < due {
+            let n = (due - report.sent).min(per_call);
+            buf.clear();
+            let now = ns_since(base);
+            for i in 0..n {
+                encode_probe(seq_start + (report.sent + i) as u32, now, &mut buf);
+            }
+            let frame_len = buf.len() / n as usize;
+            let msgs: Vec<(&[u8], SocketAddrV4)> = buf
+                .chunks(frame_len)
+                .flat_map(|frame| dests.iter().map(move |&d| (frame, d)))
+                .collect();
+            report.errors += send_all(sock, &msgs, mode);
+            report.sent += n;
+        }
+        if let Some(r) = rate {
+            // Sleep to the next tick boundary; the next burst catches up on whatever the
+            // sleep overshot, so the rate stays exact.
+            let tick = if r <= SINGLE_FRAME_RATE {
+                (1.0 / r).min(TICK.as_secs_f64())
+            } else {
+                TICK.as_secs_f64()
+            };
+            ticks = ticks.max((elapsed.as_secs_f64() / tick) as u64) + 1;
+            let next = Duration::from_secs_f64(ticks as f64 * tick);
+            if let Some(wait) = next.checked_sub(start.elapsed()) {
+                thread::sleep(wait);
+            }
+        }
+    }
+    report.elapsed = start.elapsed();
+    report
+}
+
+/// Sends every message, returns how many the kernel refused (counted, then skipped).
+fn send_all(sock: &UdpSocket, msgs: &[(&[u8], SocketAddrV4)], mode: SendMode) -> u64 {
+    let mut errors = 0;
+    match mode {
+        SendMode::Batched => {
+            let mut rest = msgs;
+            while !rest.is_empty() {
+                match sys::send_batch(sock.as_raw_fd(), rest) {
+                    Ok(n) => rest = &rest[n..],
+                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                    Err(_) => {
+                        errors += 1;
+                        rest = &rest[1..];
+                    }
+                }
+            }
+        }
+        SendMode::OneByOne => {
+            for (data, to) in msgs {
+                if sock.send_to(data, to).is_err() {
+                    errors += 1;
+                }
+            }
+        }
+    }
+    errors
+}
+
+// ---------------------------------------------------------------------------------------
+// Sink
+
+/// What one sink saw during one trial.
+#[derive(Debug, Default)]
+struct SinkReport {
+    /// Distinct benchmark frames of this trial received.
+    distinct: u64,
+    /// Benchmark frames received more than once.
+    duplicates: u64,
+    /// Frames that arrived after a frame with a higher sequence number.
+    reordered: u64,
+    /// Benchmark frames left over from an earlier trial.
+    stale: u64,
+    /// Valid frames that are not ours (e.g. other sinks' heartbeats via the router).
+    other: u64,
+    /// Candidates the parser rejected (bad CRC, unknown id, ...).
+    rejected: u64,
+    /// Receive errors other than timeouts.
+    errors: u64,
+    /// Receive time − send time of every frame, ns (saturated at u32::MAX).
+    latencies: Vec<u32>,
+}
+
+/// How a sink behaves in one trial.
+struct SinkJob<'a> {
+    sock: &'a UdpSocket,
+    seq_start: u32,
+    base: Instant,
+    stop: &'a AtomicBool,
+    /// Distinct frames so far, for the drain wait.
+    progress: &'a AtomicU64,
+    /// Router mode: where to send this sink's heartbeat every second, and as whom.
+    announce: Option<(SocketAddrV4, u8)>,
+    /// How the sink reads.
+    reading: Reading,
+}
+
+/// How a sink waits for datagrams.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reading {
+    /// Blocks in `recvmmsg` and wakes for every datagram: for latency.
+    Eager,
+    /// Once its queue is empty, sleeps [`LAZY_POLL`] before reading again, so it wakes
+    /// at most 2,000 times a second whatever the rate and leaves the CPU to the router
+    /// (on this VM a wake-up per datagram costs more than the datagram): for throughput.
+    Lazy,
+}
+
+/// Sleep of a [`Reading::Lazy`] sink between reads; its 8 MB receive buffer holds
+/// about 10 ms at 1M frames/s.
+const LAZY_POLL: Duration = Duration::from_micros(500);
+
+/// Receives until `stop` is set (checked at least every read timeout).
+fn sink(job: SinkJob<'_>) -> SinkReport {
+    let mut r = SinkReport::default();
+    let mut seen: Vec<u64> = Vec::new();
+    let mut highest: Option<u32> = None;
+    let mut parser = Parser::new();
+    let mut bufs = Box::new([[0u8; DGRAM_MAX]; sys::BATCH]);
+    let mut lens = [0usize; sys::BATCH];
+    let hb = job.announce.map(|(_, sys_id)| heartbeat(sys_id));
+    let mut next_hb = Instant::now() + Duration::from_secs(1);
+    while !job.stop.load(Ordering::Relaxed) {
+        if let (Some((router, _)), Some(hb)) = (job.announce, &hb)
+            && Instant::now() >= next_hb
+        {
+            let _ = job.sock.send_to(hb, router);
+            next_hb += Duration::from_secs(1);
+        }
+        let n = match sys::recv_batch(job.sock.as_raw_fd(), &mut bufs, &mut lens) {
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
+            Err(e) if e.kind() == ErrorKind::Interrupted => 0,
+            Err(_) => {
+                r.errors += 1;
+                thread::sleep(Duration::from_millis(1));
+                0
+            }
+        };
+        let now = ns_since(job.base);
+        for (buf, &len) in bufs.iter().zip(&lens[..n]) {
+            parser.feed(&buf[..len], |frame| {
+                let Some((seq, sent)) = decode_probe(&frame) else {
+                    r.other += 1;
+                    return;
+                };
+                let Some(i) = seq.checked_sub(job.seq_start).map(|i| i as usize) else {
+                    r.stale += 1;
+                    return;
+                };
+                if seen.len() <= i / 64 {
+                    seen.resize(i / 64 + 1, 0);
+                }
+                let bit = 1u64 << (i % 64);
+                if seen[i / 64] & bit != 0 {
+                    r.duplicates += 1;
+                    return;
+                }
+                seen[i / 64] |= bit;
+                r.distinct += 1;
+                if highest.is_some_and(|h| seq < h) {
+                    r.reordered += 1;
+                } else {
+                    highest = Some(seq);
+                }
+                r.latencies
+                    .push(now.saturating_sub(sent).min(u32::MAX as u64) as u32);
+            });
+            // A datagram holds whole frames: nothing carries over to the next one.
+            parser.clear();
+        }
+        job.progress.store(r.distinct, Ordering::Relaxed);
+        if job.reading == Reading::Lazy && n < sys::BATCH {
+            thread::sleep(LAZY_POLL);
+        }
+    }
+    r.rejected = parser.stats().rejected();
+    r
+}
+
+// ---------------------------------------------------------------------------------------
+// The router under test
+
+/// A running `mavtables` with a generated configuration, killed on drop.
+struct Router {
+    child: Child,
+    addr: SocketAddrV4,
+    dir: PathBuf,
+}
+
+impl Router {
+    /// Starts `exe` on a free port of 127.0.0.1, output to a log file in a temp dir.
+    fn start(exe: &Path) -> Result<Router, String> {
+        let port = free_port().map_err(|e| format!("no free port: {e}"))?;
+        let dir = std::env::temp_dir().join(format!("mavtables-bench-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let config = dir.join("router.conf");
+        let text = format!(
+            "udp {{\n    port {port};\n    address 127.0.0.1;\n}}\n\
+             default_action accept;\nchain default {{\n    accept;\n}}\n"
+        );
+        std::fs::write(&config, text).map_err(|e| format!("{}: {e}", config.display()))?;
+        let log = std::fs::File::create(dir.join("router.log")).map_err(|e| e.to_string())?;
+        let child = Command::new(exe)
+            .arg("--config")
+            .arg(&config)
+            .stdin(Stdio::null())
+            .stdout(log.try_clone().map_err(|e| e.to_string())?)
+            .stderr(log)
+            .spawn()
+            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        Ok(Router {
+            child,
+            addr: SocketAddrV4::new(Ipv4Addr::LOCALHOST, port),
+            dir,
+        })
+    }
+
+    /// `None` while running, else why it stopped and the last line it printed.
+    fn exited(&mut self) -> Option<String> {
+        let status = self.child.try_wait().ok()??;
+        let log = std::fs::read_to_string(self.dir.join("router.log")).unwrap_or_default();
+        let last = log.lines().last().unwrap_or("(no output)").to_string();
+        Some(format!("router exited ({status}): {last}"))
+    }
+
+    /// Makes every sink known to the router and waits (at most 5 s) until a frame from
+    /// the generator reaches each of them.
+    fn handshake(&mut self, gen_sock: &UdpSocket, sinks: &[UdpSocket]) -> Result<(), String> {
+        let start = Instant::now();
+        let mut reached = vec![false; sinks.len()];
+        let mut probe = Vec::new();
+        encode_probe(0, 0, &mut probe);
+        let mut buf = [0u8; DGRAM_MAX];
+        while start.elapsed() < Duration::from_secs(5) {
+            if let Some(why) = self.exited() {
+                return Err(why);
+            }
+            for (i, s) in sinks.iter().enumerate() {
+                let _ = s.send_to(&heartbeat(SINK_SYSTEM + i as u8), self.addr);
+            }
+            thread::sleep(Duration::from_millis(20));
+            let _ = gen_sock.send_to(&probe, self.addr);
+            thread::sleep(Duration::from_millis(80));
+            for (s, ok) in sinks.iter().zip(&mut reached) {
+                while let Ok(n) = s.recv(&mut buf) {
+                    Parser::new().feed(&buf[..n], |f| *ok |= decode_probe(&f).is_some());
+                }
+            }
+            if reached.iter().all(|&r| r) {
+                return Ok(());
+            }
+        }
+        Err(match self.exited() {
+            Some(why) => why,
+            None => format!(
+                "no frame forwarded to {} of {} sinks within 5 s",
+                reached.iter().filter(|&&r| !r).count(),
+                sinks.len()
+            ),
+        })
+    }
+
+    /// CPU time (user + system) the router has used so far.
+    fn cpu(&self) -> Option<Duration> {
+        cpu_time(self.child.id())
+    }
+
+    /// Peak resident set size (`VmHWM`), KiB.
+    fn peak_rss_kib(&self) -> Option<u64> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
+        let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+        line.split_whitespace().nth(1)?.parse().ok()
+    }
+}
+
+impl Drop for Router {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// User + system CPU time of process `pid` from `/proc/<pid>/stat`.
+fn cpu_time(pid: u32) -> Option<Duration> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (which may contain spaces) start at field 3.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut f = rest.split_whitespace().skip(11);
+    let ticks: u64 = f.next()?.parse::<u64>().ok()? + f.next()?.parse::<u64>().ok()?;
+    Some(Duration::from_secs_f64(
+        ticks as f64 / sys::clock_ticks() as f64,
+    ))
+}
+
+/// A UDP port of 127.0.0.1 that was free a moment ago.
+fn free_port() -> io::Result<u16> {
+    Ok(UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+// ---------------------------------------------------------------------------------------
+// Trials
+
+/// Where the generator sends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    Direct,
+    Router,
+}
+
+/// The sockets (and router) of one mode and number of receivers, reused by its trials.
+struct Setup {
+    gen_sock: UdpSocket,
+    sinks: Vec<UdpSocket>,
+    dests: Vec<SocketAddrV4>,
+    router: Option<Router>,
+    next_seq: u32,
+    base: Instant,
+}
+
+/// The outcome of one trial.
+#[derive(Debug)]
+struct Trial {
+    rate: Option<f64>,
+    generator: GenReport,
+    sinks: Vec<SinkReport>,
+    /// CPU time of the router (router mode) during the trial.
+    router_cpu: Option<Duration>,
+    /// CPU time of this process (generator + sinks) during the trial.
+    harness_cpu: Option<Duration>,
+}
+
+impl Trial {
+    /// Frames that did not reach a sink, summed over sinks.
+    fn lost(&self) -> u64 {
+        self.sinks
+            .iter()
+            .map(|s| self.generator.sent.saturating_sub(s.distinct))
+            .sum()
+    }
+
+    /// Frames per second actually sent.
+    fn achieved(&self) -> f64 {
+        self.generator.sent as f64 / self.generator.elapsed.as_secs_f64().max(1e-9)
+    }
+
+    /// The generator kept up with the target rate (within 5%).
+    fn on_rate(&self) -> bool {
+        self.rate.is_none_or(|r| self.achieved() >= 0.95 * r)
+    }
+
+    fn zero_loss(&self) -> bool {
+        self.lost() == 0 && self.generator.errors == 0
+    }
+
+    fn loss_percent(&self) -> f64 {
+        100.0 * self.lost() as f64 / (self.generator.sent * self.sinks.len() as u64).max(1) as f64
+    }
+
+    /// Latency quantiles (ns) over all sinks' frames.
+    fn latency(&self, qs: &[f64]) -> Vec<u32> {
+        let mut all: Vec<u32> = self
+            .sinks
+            .iter()
+            .flat_map(|s| &s.latencies)
+            .copied()
+            .collect();
+        all.sort_unstable();
+        qs.iter().map(|&q| quantile(&all, q)).collect()
+    }
+
+    fn sink_errors(&self) -> u64 {
+        self.sinks.iter().map(|s| s.errors + s.rejected).sum()
+    }
+}
+
+/// The `q` quantile (nearest rank) of sorted `v`; 0 for an empty slice.
+fn quantile(v: &[u32], q: f64) -> u32 {
+    if v.is_empty() {
+        return 0;
+    }
+    let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    v[rank - 1]
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+impl Setup {
+    /// Binds the generator and `receivers` sinks; in router mode also starts the router
+    /// and waits until it forwards to every sink.
+    fn new(mode: Mode, receivers: usize, exe: Option<&Path>) -> Result<Setup, String> {
+        let io = |e: io::Error| format!("socket: {e}");
+        let gen_sock = UdpSocket::bind("127.0.0.1:0").map_err(io)?;
+        gen_sock
+            .set_write_timeout(Some(Duration::from_millis(100)))
+            .map_err(io)?;
+        let mut sinks = Vec::new();
+        for _ in 0..receivers {
+            let s = UdpSocket::bind("127.0.0.1:0").map_err(io)?;
+            s.set_read_timeout(Some(Duration::from_millis(20)))
+                .map_err(io)?;
+            // Large enough that the sink is never what drops frames; best effort.
+            let _ = sys::set_recv_buffer(s.as_raw_fd(), 4 << 20);
+            sinks.push(s);
+        }
+        let mut router = None;
+        let dests = match mode {
+            Mode::Direct => sinks
+                .iter()
+                .map(|s| match s.local_addr() {
+                    Ok(std::net::SocketAddr::V4(a)) => Ok(a),
+                    other => Err(format!("sink address: {other:?}")),
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+            Mode::Router => {
+                let exe = exe.ok_or("no router binary")?;
+                let mut r = Router::start(exe)?;
+                r.handshake(&gen_sock, &sinks)?;
+                let addr = r.addr;
+                router = Some(r);
+                vec![addr]
+            }
+        };
+        Ok(Setup {
+            gen_sock,
+            sinks,
+            dests,
+            router,
+            next_seq: 1,
+            base: Instant::now(),
+        })
+    }
+
+    /// Runs the generator on this thread and the sinks on their own, then waits for the
+    /// sinks to drain (until they have everything, or 150 ms without progress, or 2 s).
+    fn trial(
+        &mut self,
+        rate: Option<f64>,
+        duration: Duration,
+        send: SendMode,
+        reading: Reading,
+    ) -> Trial {
+        let seq_start = self.next_seq;
+        let stop = AtomicBool::new(false);
+        let progress: Vec<AtomicU64> = self.sinks.iter().map(|_| AtomicU64::new(0)).collect();
+        let announce = self.router.as_ref().map(|r| r.addr);
+        let router_before = self.router.as_ref().and_then(Router::cpu);
+        let self_before = cpu_time(std::process::id());
+        let (generator, sinks) = thread::scope(|s| {
+            let handles: Vec<_> = self
+                .sinks
+                .iter()
+                .zip(&progress)
+                .enumerate()
+                .map(|(i, (sock, progress))| {
+                    let job = SinkJob {
+                        sock,
+                        seq_start,
+                        base: self.base,
+                        stop: &stop,
+                        progress,
+                        announce: announce.map(|a| (a, SINK_SYSTEM + i as u8)),
+                        reading,
+                    };
+                    s.spawn(move || sink(job))
+                })
+                .collect();
+            let generator = generate(
+                &self.gen_sock,
+                &self.dests,
+                rate,
+                duration,
+                seq_start,
+                send,
+                self.base,
+            );
+            let drain_start = Instant::now();
+            let mut last = (Instant::now(), 0u64);
+            while drain_start.elapsed() < Duration::from_secs(2) {
+                let got: u64 = progress.iter().map(|p| p.load(Ordering::Relaxed)).sum();
+                if got >= generator.sent * progress.len() as u64
+                    || last.0.elapsed() > Duration::from_millis(150)
+                {
+                    break;
+                }
+                if got != last.1 {
+                    last = (Instant::now(), got);
+                }
+                thread::sleep(Duration::from_millis(5));
+            }
+            stop.store(true, Ordering::Relaxed);
+            let sinks: Vec<SinkReport> = handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_default())
+                .collect();
+            (generator, sinks)
+        });
+        self.next_seq = seq_start + generator.sent as u32 + 1;
+        let diff = |a: Option<Duration>, b: Option<Duration>| Some(b?.saturating_sub(a?));
+        Trial {
+            rate,
+            generator,
+            sinks,
+            router_cpu: diff(router_before, self.router.as_ref().and_then(Router::cpu)),
+            harness_cpu: diff(self_before, cpu_time(std::process::id())),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The measurement plan
+
+/// Durations of one run.
+struct Plan {
+    step: Duration,
+    latency_rounds: usize,
+    latency_step: Duration,
+    cpu_step: Duration,
+}
+
+/// Figures of one mode and number of receivers.
+#[derive(Default)]
+struct Row {
+    /// Why the mode could not be measured.
+    unavailable: Option<String>,
+    /// Highest rate of the ladder with zero loss.
+    zero_loss: Option<f64>,
+    /// Why the ladder stopped: loss (rate, loss %), the generator, or the end.
+    stop: String,
+    /// Router (router mode) and harness CPU per frame sent, µs.
+    router_cpu_us: Option<f64>,
+    harness_cpu_us: Option<f64>,
+    /// Median p50, p99, p99.9 latency, µs.
+    latency_us: Option<[f64; 3]>,
+    /// Frames lost during the latency rounds.
+    latency_loss: u64,
+    /// Router's peak RSS after the normal runs, KiB.
+    rss_kib: Option<u64>,
+    /// What 10× overload did (rate reached, loss, peak RSS).
+    overload: Option<String>,
+}
+
+fn fmt_rate(r: f64) -> String {
+    if r >= 1e6 {
+        format!("{:.2}M", r / 1e6)
+    } else {
+        format!("{:.0}k", r / 1e3)
+    }
+}
+
+fn per_frame_us(cpu: Option<Duration>, frames: u64) -> Option<f64> {
+    Some(cpu?.as_secs_f64() * 1e6 / frames.max(1) as f64)
+}
+
+/// Measures one mode with `receivers` sinks, printing progress as it goes.
+fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row {
+    let mut row = Row::default();
+    let mut setup = match Setup::new(mode, receivers, exe) {
+        Ok(s) => s,
+        Err(why) => {
+            row.unavailable = Some(why);
+            return row;
+        }
+    };
+    let label = format!("{mode:?} x{receivers}").to_lowercase();
+    // Highest rate with zero loss: a step with loss is tried once more (noisy machine).
+    row.stop = "end of ladder".into();
+    for &rate in &LADDER {
+        let mut t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
+        if !t.zero_loss() && t.on_rate() {
+            t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
+        }
+        println!(
+            "  {label:<10} {:>6}/s: sent {:>8} at {:>6}/s, lost {:>7} ({:.3}%), send errors {}, sink errors {}",
+            fmt_rate(rate),
+            t.generator.sent,
+            fmt_rate(t.achieved()),
+            t.lost(),
+            t.loss_percent(),
+            t.generator.errors,
+            t.sink_errors()
+        );
+        if !t.on_rate() {
+            row.stop = format!(
+                "{}/s not reached: generator at most {}/s",
+                fmt_rate(rate),
+                fmt_rate(t.achieved())
+            );
+            break;
+        }
+        if !t.zero_loss() {
+            row.stop = format!("loss at {}/s ({:.2}%)", fmt_rate(rate), t.loss_percent());
+            break;
+        }
+        row.zero_loss = Some(rate);
+    }
+    if let Some(why) = setup.router.as_mut().and_then(Router::exited) {
+        row.stop = format!("{} — then {why}", row.stop);
+        return row;
+    }
+    // CPU per frame at a fixed rate.
+    let t = setup.trial(
+        Some(CPU_RATE),
+        plan.cpu_step,
+        SendMode::Batched,
+        Reading::Lazy,
+    );
+    row.router_cpu_us = per_frame_us(t.router_cpu, t.generator.sent);
+    row.harness_cpu_us = per_frame_us(t.harness_cpu, t.generator.sent);
+    // Latency at 10k frames/s, medians over rounds.
+    let mut qs = [vec![], vec![], vec![]];
+    for _ in 0..plan.latency_rounds {
+        let t = setup.trial(
+            Some(LATENCY_RATE),
+            plan.latency_step,
+            SendMode::Batched,
+            Reading::Eager,
+        );
+        row.latency_loss += t.lost();
+        for (v, q) in qs.iter_mut().zip(t.latency(&[0.5, 0.99, 0.999])) {
+            v.push(q as f64 / 1e3);
+        }
+    }
+    row.latency_us = Some(qs.map(median));
+    // Peak RSS of the router, then under 10x overload.
+    if let Some(router) = &setup.router {
+        row.rss_kib = router.peak_rss_kib();
+        let rate = 10.0 * row.zero_loss.unwrap_or(LADDER[0]);
+        let t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
+        let rss = setup.router.as_ref().and_then(Router::peak_rss_kib);
+        row.overload = Some(format!(
+            "{}/s sent ({} target): {:.1}% lost, peak RSS {} KiB",
+            fmt_rate(t.achieved()),
+            fmt_rate(rate),
+            t.loss_percent(),
+            rss.map_or("?".into(), |k| k.to_string())
+        ));
+        if let Some(why) = setup.router.as_mut().and_then(Router::exited) {
+            row.overload = Some(format!("{} — then {why}", row.overload.unwrap()));
+        }
+    }
+    row
+}
+
+/// Unpaced sending for `duration` with each send mode, interleaved over `rounds`:
+/// median frames/s sent and delivered (direct mode, 1 receiver).
+fn batching_gain(rounds: usize, duration: Duration) -> Result<[(f64, f64); 2], String> {
+    let mut setup = Setup::new(Mode::Direct, 1, None)?;
+    let mut v = [(vec![], vec![]), (vec![], vec![])];
+    for _ in 0..rounds {
+        for (i, mode) in [SendMode::Batched, SendMode::OneByOne]
+            .into_iter()
+            .enumerate()
+        {
+            let t = setup.trial(None, duration, mode, Reading::Lazy);
+            let secs = t.generator.elapsed.as_secs_f64();
+            v[i].0.push(t.achieved());
+            v[i].1.push(t.sinks[0].distinct as f64 / secs);
+        }
+    }
+    Ok(v.map(|(s, d)| (median(s), median(d))))
+}
+
+fn print_row(out: &mut impl Write, mode: Mode, receivers: usize, row: &Row) -> io::Result<()> {
+    let name = format!("{mode:?}").to_lowercase();
+    if let Some(why) = &row.unavailable {
+        return writeln!(
+            out,
+            "| {name} | {receivers} | {name} mode unavailable: {why} |"
+        );
+    }
+    let us = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.2} µs"));
+    let lat = row.latency_us.map_or("—".into(), |[a, b, c]| {
+        format!("{a:.0} / {b:.0} / {c:.0} µs")
+    });
+    writeln!(
+        out,
+        "| {name} | {receivers} | {} ({}) | {} | {} | {lat}{} | {} | {} |",
+        row.zero_loss
+            .map_or("none".into(), |r| format!("{}/s", fmt_rate(r))),
+        row.stop,
+        us(row.router_cpu_us),
+        us(row.harness_cpu_us),
+        if row.latency_loss > 0 {
+            format!(" ({} lost)", row.latency_loss)
+        } else {
+            String::new()
+        },
+        row.rss_kib.map_or("—".into(), |k| format!("{k} KiB")),
+        row.overload.as_deref().unwrap_or("—"),
+    )
+}
+
+/// `cargo test`: a ~2 s check that the generator, sinks and accounting work.
+fn smoke() {
+    let mut setup = Setup::new(Mode::Direct, 1, None).expect("direct setup");
+    let t = setup.trial(
+        Some(20e3),
+        Duration::from_secs(1),
+        SendMode::Batched,
+        Reading::Lazy,
+    );
+    let got = t.sinks[0].distinct;
+    println!(
+        "forwarding smoke: sent {} at {}/s, received {got}, lost {}, reordered {}",
+        t.generator.sent,
+        fmt_rate(t.achieved()),
+        t.lost(),
+        t.sinks[0].reordered,
+    );
+    assert!(
+        t.generator.sent >= 19_000,
+        "generator sent {}",
+        t.generator.sent
+    );
+    assert!(
+        got * 10 >= t.generator.sent * 9,
+        "sink got {got} of {}",
+        t.generator.sent
+    );
+    assert_eq!(t.sinks[0].rejected, 0, "sink rejected frames");
+    assert_eq!(t.sinks[0].duplicates, 0);
+    let t = setup.trial(
+        None,
+        Duration::from_millis(300),
+        SendMode::OneByOne,
+        Reading::Eager,
+    );
+    assert!(
+        t.sinks[0].distinct > 0,
+        "unpaced one-by-one run delivered nothing"
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if !args.iter().any(|a| a == "--bench") {
+        smoke();
+        return;
+    }
+    let quick = args.iter().any(|a| a == "--quick")
+        || std::env::var_os("MAVTABLES_BENCH_QUICK").is_some_and(|v| v != "0");
+    let plan = if quick {
+        Plan {
+            step: Duration::from_millis(500),
+            latency_rounds: 1,
+            latency_step: Duration::from_millis(500),
+            cpu_step: Duration::from_millis(500),
+        }
+    } else {
+        Plan {
+            step: Duration::from_secs(2),
+            latency_rounds: 3,
+            latency_step: Duration::from_secs(1),
+            cpu_step: Duration::from_secs(2),
+        }
+    };
+    // Cargo sets this for benches; `MAVTABLES_BENCH_ROUTER` points at another build.
+    let exe = std::env::var_os("MAVTABLES_BENCH_ROUTER")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_mavtables")));
+    let started = Instant::now();
+    println!(
+        "UDP forwarding benchmark on 127.0.0.1, {} CPUs, {} steps{}",
+        thread::available_parallelism().map_or(0, |n| n.get()),
+        if quick { "0.5 s" } else { "2 s" },
+        if quick { " (--quick)" } else { "" }
+    );
+    let gain = batching_gain(
+        if quick { 1 } else { 3 },
+        Duration::from_millis(if quick { 300 } else { 700 }),
+    );
+    let mut rows = Vec::new();
+    for mode in [Mode::Direct, Mode::Router] {
+        for receivers in [1, 3] {
+            let row = measure(mode, receivers, Some(&exe), &plan);
+            if let Some(why) = &row.unavailable {
+                let mode = format!("{mode:?}").to_lowercase();
+                println!("  {mode} x{receivers}: {mode} mode unavailable: {why}");
+            }
+            rows.push((mode, receivers, row));
+        }
+    }
+    let mut out = io::stdout().lock();
+    let _ = writeln!(
+        out,
+        "\n| mode | receivers | highest zero-loss rate (then) | router CPU/frame @{} | harness CPU/frame | latency p50 / p99 / p99.9 @{} | router peak RSS | 10x overload |",
+        fmt_rate(CPU_RATE),
+        fmt_rate(LATENCY_RATE)
+    );
+    let _ = writeln!(out, "|---|---:|---|---:|---:|---|---:|---|");
+    for (mode, receivers, row) in &rows {
+        let _ = print_row(&mut out, *mode, *receivers, row);
+    }
+    match gain {
+        Ok([(bs, bd), (os, od)]) => {
+            let _ = writeln!(
+                out,
+                "\nunpaced sending, direct x1: sendmmsg {}/s sent, {}/s delivered; \
+                 send_to {}/s sent, {}/s delivered; batching gain {:.2}x sent",
+                fmt_rate(bs),
+                fmt_rate(bd),
+                fmt_rate(os),
+                fmt_rate(od),
+                bs / os
+            );
+        }
+        Err(why) => {
+            let _ = writeln!(out, "\nunpaced sending: unavailable: {why}");
+        }
+    }
+    let _ = writeln!(out, "total time {:.0} s", started.elapsed().as_secs_f64());
+}
