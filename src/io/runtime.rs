@@ -39,6 +39,8 @@ struct Runtime {
     udp: Vec<UdpDriver>,
     serial: Vec<SerialDriver>,
     timer: TimerFd,
+    /// The deadline the pacing timer is armed for (re-armed only when it changes).
+    pacing_armed: Option<Timestamp>,
     signals: Signals,
     logger: Logger,
     out: Output,
@@ -48,6 +50,9 @@ struct Runtime {
     udp_ready: Vec<bool>,
     /// Serial ports likewise.
     serial_ready: Vec<bool>,
+    /// Whether writability is currently watched, per UDP interface and serial port.
+    udp_watching_writes: Vec<bool>,
+    serial_watching_writes: Vec<bool>,
 }
 
 impl Runtime {
@@ -116,9 +121,59 @@ impl Runtime {
                     .deregister(&mut SourceFd(&f.as_raw_fd()));
             }
         }
-        let delay = next.map(|t| t.saturating_since(self.now()));
-        if let Err(e) = self.timer.set(delay) {
-            log::error(&format_args!("pacing timer: {e}"));
+        self.watch_writes();
+        if next != self.pacing_armed {
+            self.pacing_armed = next;
+            let delay = next.map(|t| t.saturating_since(self.now()));
+            if let Err(e) = self.timer.set(delay) {
+                log::error(&format_args!("pacing timer: {e}"));
+            }
+        }
+    }
+
+    /// Watches writability exactly where a socket or port refused data.
+    fn watch_writes(&mut self) {
+        for (i, u) in self.udp.iter_mut().enumerate() {
+            if u.blocked != self.udp_watching_writes[i] {
+                let interest = if u.blocked {
+                    Interest::READABLE | Interest::WRITABLE
+                } else {
+                    Interest::READABLE
+                };
+                let token = Token(UDP_BASE + i);
+                match self
+                    .poll
+                    .registry()
+                    .reregister(u.socket_mut(), token, interest)
+                {
+                    Ok(()) => self.udp_watching_writes[i] = u.blocked,
+                    Err(e) => {
+                        log::error(&format_args!("{}: cannot watch the socket: {e}", u.label))
+                    }
+                }
+            }
+        }
+        for (i, s) in self.serial.iter().enumerate() {
+            let Some(f) = s.file() else { continue };
+            if s.blocked != self.serial_watching_writes[i] {
+                let interest = if s.blocked {
+                    Interest::READABLE | Interest::WRITABLE
+                } else {
+                    Interest::READABLE
+                };
+                let fd = f.as_raw_fd();
+                let token = Token(SERIAL_BASE + i);
+                match self
+                    .poll
+                    .registry()
+                    .reregister(&mut SourceFd(&fd), token, interest)
+                {
+                    Ok(()) => self.serial_watching_writes[i] = s.blocked,
+                    Err(e) => {
+                        log::error(&format_args!("{}: cannot watch the port: {e}", s.device()))
+                    }
+                }
+            }
         }
     }
 
@@ -132,8 +187,9 @@ impl Runtime {
                 let registered = self.poll.registry().register(
                     &mut SourceFd(&fd),
                     Token(SERIAL_BASE + i),
-                    Interest::READABLE | Interest::WRITABLE,
+                    Interest::READABLE,
                 );
+                self.serial_watching_writes[i] = false;
                 if let Err(e) = registered {
                     log::error(&format_args!("{}: cannot watch the port: {e}", s.device()));
                 }
@@ -333,7 +389,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
             poll.registry().register(
                 driver.socket_mut(),
                 Token(UDP_BASE + udp.len()),
-                Interest::READABLE | Interest::WRITABLE,
+                Interest::READABLE,
             )?;
             udp.push(driver);
         }
@@ -352,6 +408,8 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     }
     let udp_ready = vec![false; udp.len()];
     let serial_ready = vec![false; serial.len()];
+    let udp_watching_writes = vec![false; udp.len()];
+    let serial_watching_writes = vec![false; serial.len()];
     Ok(Runtime {
         poll,
         router,
@@ -365,5 +423,8 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
         start,
         udp_ready,
         serial_ready,
+        udp_watching_writes,
+        serial_watching_writes,
+        pacing_armed: None,
     })
 }

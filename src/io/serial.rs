@@ -46,6 +46,9 @@ pub struct SerialDriver {
     buffer: Vec<u8>,
     /// Times the device was lost or could not be opened.
     pub failures: u64,
+    /// The port refused bytes: wait for it to become writable (only then is
+    /// writability watched, so sending does not wake the loop needlessly).
+    pub blocked: bool,
 }
 
 /// The device's link counters as the source of received frames.
@@ -92,6 +95,7 @@ impl SerialDriver {
             counters: LinkCounters::default(),
             buffer: vec![0; READ_CHUNK],
             failures: 0,
+            blocked: false,
         }
     }
 
@@ -225,6 +229,7 @@ impl SerialDriver {
     /// Writes queued packets, highest priority first, as far as the port takes them.
     /// Returns `Err(file)` when the device was lost.
     pub fn flush(&mut self, router: &mut Router, now: Timestamp) -> Result<(), Option<File>> {
+        self.blocked = false;
         loop {
             let State::Open(file) = &mut self.state else {
                 return Ok(());
@@ -241,11 +246,13 @@ impl SerialDriver {
                 Ok(n) => {
                     self.partial = Some((packet, done + n));
                     if n == 0 {
+                        self.blocked = true;
                         return Ok(());
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
                     self.partial = Some((packet, done));
+                    self.blocked = true;
                     return Ok(());
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {

@@ -51,6 +51,10 @@ pub struct UdpDriver {
     pub pace_deadline: Option<Timestamp>,
     /// Receive or send errors other than "would block".
     pub io_errors: u64,
+    /// The socket refused datagrams: wait for it to become writable. (Writability is
+    /// only watched while this is set: an idle UDP socket is always writable, and
+    /// watching it would wake the loop after every datagram sent.)
+    pub blocked: bool,
 }
 
 /// Binds the socket of `config` (non-blocking, large buffers).
@@ -110,6 +114,7 @@ impl UdpDriver {
             batch: RecvBatch::new(DATAGRAM_MAX),
             pace_deadline: None,
             io_errors: 0,
+            blocked: false,
         })
     }
 
@@ -139,6 +144,12 @@ impl UdpDriver {
     ) -> bool {
         for _ in 0..BATCHES_PER_TURN {
             match sys::recv_batch(&self.socket, &mut self.batch) {
+                // Fewer than a full batch: the socket is drained. With edge-triggered
+                // readiness a datagram arriving later raises a new event.
+                Ok(n) if n < MAX_BATCH => {
+                    self.route_batch(router, now, out, unknown);
+                    return false;
+                }
                 Ok(_) => {}
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
@@ -150,40 +161,51 @@ impl UdpDriver {
                     return false;
                 }
             }
-            let Self {
-                batch,
-                parser,
-                last_sender,
-                by_address,
-                remotes,
-                order,
-                ..
-            } = self;
-            for (from, bytes) in batch.iter() {
-                // Non-IPv4 senders are ignored, as in the original.
-                let Some(address) = from else { continue };
-                // A frame may continue in the sender's next datagram, but never in
-                // another sender's: partial frames of interleaved senders are dropped.
-                if *last_sender != Some(address) {
-                    parser.clear();
-                    *last_sender = Some(address);
-                }
-                let mut events = ToRouter {
-                    router: &mut *router,
-                    out: &mut *out,
-                    now,
-                    unknown: &mut *unknown,
-                    link: Sender {
-                        address,
-                        by_address: &mut *by_address,
-                        remotes: &mut *remotes,
-                        order: &mut *order,
-                    },
-                };
-                parser.feed_events(bytes, &mut events);
-            }
+            self.route_batch(router, now, out, unknown);
         }
         true
+    }
+
+    /// Routes the frames of the datagrams of the last receive batch.
+    fn route_batch(
+        &mut self,
+        router: &mut Router,
+        now: Timestamp,
+        out: &mut Output,
+        unknown: &mut UnknownIds,
+    ) {
+        let Self {
+            batch,
+            parser,
+            last_sender,
+            by_address,
+            remotes,
+            order,
+            ..
+        } = self;
+        for (from, bytes) in batch.iter() {
+            // Non-IPv4 senders are ignored, as in the original.
+            let Some(address) = from else { continue };
+            // A frame may continue in the sender's next datagram, but never in
+            // another sender's: partial frames of interleaved senders are dropped.
+            if *last_sender != Some(address) {
+                parser.clear();
+                *last_sender = Some(address);
+            }
+            let mut events = ToRouter {
+                router: &mut *router,
+                out: &mut *out,
+                now,
+                unknown: &mut *unknown,
+                link: Sender {
+                    address,
+                    by_address: &mut *by_address,
+                    remotes: &mut *remotes,
+                    order: &mut *order,
+                },
+            };
+            parser.feed_events(bytes, &mut events);
+        }
     }
 
     /// True if this interface owns link `id`.
@@ -227,6 +249,7 @@ impl UdpDriver {
     /// holds a datagram back.
     pub fn flush(&mut self, router: &mut Router, now: Timestamp) {
         self.pace_deadline = None;
+        self.blocked = false;
         loop {
             while self.in_flight.len() < MAX_BATCH {
                 let Some(id) = self.next_ready(router) else {
@@ -259,10 +282,14 @@ impl UdpDriver {
                         }
                     }
                     if sent < wanted {
-                        return; // the socket buffer is full: wait until writable
+                        self.blocked = true; // the socket buffer is full: wait until writable
+                        return;
                     }
                 }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    self.blocked = true;
+                    return;
+                }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 // A late ICMP error for an earlier datagram surfaced here; nothing was sent.
                 Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
