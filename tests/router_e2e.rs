@@ -247,7 +247,8 @@ fn every_message(sender_on_serial: bool, v1: bool) {
     // Serial peers first: their ptys exist before the router opens the devices.
     let mut serial_listener = listener(&pty(&listen_dev), "29.39", list.len(), &[]);
     let flags: &[&str] = if v1 { &["--v1"] } else { &[] };
-    let mut serial_sender = sender_on_serial.then(|| sender(&pty(&send_dev), "192.168", flags, &list));
+    let mut serial_sender =
+        sender_on_serial.then(|| sender(&pty(&send_dev), "192.168", flags, &list));
     let mut router = Router::start(&s, &config, 1);
     let mut udp_listener = listener(&udp(port), "12.26", list.len(), &[]);
     learn(&mut router, &mut udp_listener, "12.26", "127.0.0.1:");
@@ -263,7 +264,11 @@ fn every_message(sender_on_serial: bool, v1: bool) {
     for (what, peer) in [("udp", &mut udp_listener), ("serial", &mut serial_listener)] {
         let got = peer.received(Duration::from_secs(40));
         let want_names: Vec<String> = list.iter().map(|n| n.to_string()).collect();
-        assert_frames(&format!("{what} listener: types"), &names(&got), &want_names);
+        assert_frames(
+            &format!("{what} listener: types"),
+            &names(&got),
+            &want_names,
+        );
         assert_frames(&format!("{what} listener"), &hexes(&got), &sent);
     }
     router.stop();
@@ -462,7 +467,10 @@ fn local_now() -> String {
         .arg("+%Y-%m-%d %H:%M:%S")
         .output()
         .expect("date");
-    String::from_utf8(out.stdout).expect("utf-8").trim().to_string()
+    String::from_utf8(out.stdout)
+        .expect("utf-8")
+        .trim()
+        .to_string()
 }
 
 /// Every log line starts with `YYYY-MM-DD HH:MM:SS  ` (local time, two spaces) taken
@@ -492,8 +500,7 @@ fn routing_run(loglevel: u8, v1: bool) {
     let s = Scratch::new("routing");
     let port = free_udp_port();
     let dev = s.path("ttyS0");
-    let config =
-        serial_block(&dev, "") + &udp_block(port, "max_bitrate 262144; ") + ROUTING;
+    let config = serial_block(&dev, "") + &udp_block(port, "max_bitrate 262144; ") + ROUTING;
     let mut serial_listener = listener(&pty(&dev), "172.128", 2, &["--linger", "0.5"]);
     let before = local_now();
     let mut router = Router::start(&s, &config, loglevel);
@@ -516,7 +523,11 @@ fn routing_run(loglevel: u8, v1: bool) {
     assert_frames("127.1", &hexes(&l127.received(wait)), &pick(&[0]));
     assert_frames("192.168", &hexes(&l192.received(wait)), &pick(&[0, 1]));
     // SET_HOME_POSITION (priority 3), then MISSION_REQUEST_LIST to 172.128.
-    assert_frames("172.128", &hexes(&serial_listener.received(wait)), &pick(&[6, 7]));
+    assert_frames(
+        "172.128",
+        &hexes(&serial_listener.received(wait)),
+        &pick(&[6, 7]),
+    );
     let stopped = router.stop();
     let after = local_now();
     check_timestamps(&stopped.stdout, &before, &after);
@@ -621,7 +632,12 @@ fn preload_reaches_a_silent_serial_listener() {
     let config = udp_block(port, "")
         + &serial_block(&dev, "preload 192.168; preload 127.1; ")
         + REJECT_HEARTBEAT_ACCEPT;
-    let mut rx = listener(&pty(&dev), "10.10", 6, &["--no-heartbeat", "--linger", "0.5"]);
+    let mut rx = listener(
+        &pty(&dev),
+        "10.10",
+        6,
+        &["--no-heartbeat", "--linger", "0.5"],
+    );
     let mut router = Router::start(&s, &config, 1);
     router.wait_for(&format!("new component 192.168 on {dev}"));
     router.wait_for(&format!("new component 127.1 on {dev}"));
@@ -640,11 +656,21 @@ fn preload_reaches_a_silent_serial_listener() {
     let mut tx = sender(&udp(port), "255.190", &[], &items);
     tx.go();
     let sent = tx.sent(Duration::from_secs(10));
-    let want: Vec<String> = [0, 1, 2, 4, 6, 8].iter().map(|&i| sent[i].clone()).collect();
-    assert_frames("silent listener", &hexes(&rx.received(Duration::from_secs(15))), &want);
+    let want: Vec<String> = [0, 1, 2, 4, 6, 8]
+        .iter()
+        .map(|&i| sent[i].clone())
+        .collect();
+    assert_frames(
+        "silent listener",
+        &hexes(&rx.received(Duration::from_secs(15))),
+        &want,
+    );
     let stopped = router.stop();
     assert!(
-        !stopped.stdout.iter().any(|l| l.contains("new component 10.10")),
+        !stopped
+            .stdout
+            .iter()
+            .any(|l| l.contains("new component 10.10")),
         "the silent listener sent something"
     );
 }
@@ -707,7 +733,10 @@ fn serial_device_vanishes_and_comes_back() {
     // Before: both listeners get everything.
     send(20, Duration::from_millis(2));
     assert_eq!(seqs(&rx.recv(20, 5 * SECOND)), (0..20).collect::<Vec<u8>>());
-    assert_eq!(seqs(&read_frames(&mut master, 5 * SECOND, |f| f.len() >= 20)), (0..20).collect::<Vec<u8>>());
+    assert_eq!(
+        seqs(&read_frames(&mut master, 5 * SECOND, |f| f.len() >= 20)),
+        (0..20).collect::<Vec<u8>>()
+    );
 
     // The device goes: its other end closes and the path disappears.
     drop(master);
@@ -729,7 +758,10 @@ fn serial_device_vanishes_and_comes_back() {
         .err
         .wait_for(&format!("serial device {dev} is back"), 5 * SECOND);
     send(20, Duration::from_millis(2));
-    assert_eq!(seqs(&rx.recv(20, 5 * SECOND)), (70..90).collect::<Vec<u8>>());
+    assert_eq!(
+        seqs(&rx.recv(20, 5 * SECOND)),
+        (70..90).collect::<Vec<u8>>()
+    );
     // What was queued for the port while it was away may come first; then all of 70..90.
     let mut got = seqs(&read_frames(&mut master, 5 * SECOND, |f| {
         f.last().is_some_and(|l| l[4] == 89)
@@ -833,7 +865,9 @@ fn dirty_stream(sys: u8, comp: u8, seed: u64) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
             }
             4 => {
                 // Well-formed but of an id outside the dialect, glued to a valid frame.
-                let mut unknown = vec![0xFD, 4, 0, 0, g.seq, sys, comp, 0xEF, 0xBE, 0xAD, 1, 2, 3, 4];
+                let mut unknown = vec![
+                    0xFD, 4, 0, 0, g.seq, sys, comp, 0xEF, 0xBE, 0xAD, 1, 2, 3, 4,
+                ];
                 let crc = mavtables::wire::crc::frame_checksum(&unknown[1..], 0);
                 unknown.extend(crc.to_le_bytes());
                 chunks.push([unknown, g.make(true, true)].concat());
@@ -918,9 +952,17 @@ fn garbage_and_malformed_frames_lose_no_valid_frame() {
         .filter(|l| l.contains("is not part of the 'ardupilotmega' MAVLink dialect"))
         .collect();
     let ours = "Packet ID (#11386607) is not part of the 'ardupilotmega' MAVLink dialect.";
-    assert_eq!(unknown.iter().filter(|l| **l == ours).count(), 1, "{unknown:?}");
+    assert_eq!(
+        unknown.iter().filter(|l| **l == ours).count(),
+        1,
+        "{unknown:?}"
+    );
     let distinct: std::collections::HashSet<&&String> = unknown.iter().collect();
-    assert_eq!(distinct.len(), unknown.len(), "reported once per id: {unknown:?}");
+    assert_eq!(
+        distinct.len(),
+        unknown.len(),
+        "reported once per id: {unknown:?}"
+    );
 }
 
 // ----------------------------------------------------------------------------------------
@@ -952,7 +994,11 @@ fn max_bitrate_within_one_percent_over_10_s() {
                 let t = start.elapsed().as_secs_f64();
                 let due = RATE / 8.0 * (3.0 * (t / 0.5).min(1.0) + 2.0 * t);
                 while sent < due {
-                    let name = if seq % 3 == 1 { "ATTITUDE" } else { "ENCAPSULATED_DATA" };
+                    let name = if seq % 3 == 1 {
+                        "ATTITUDE"
+                    } else {
+                        "ENCAPSULATED_DATA"
+                    };
                     let f = frame(name, true, seq, 192, 168, seq);
                     tx.send(&f);
                     sent += f.len() as f64;
@@ -988,7 +1034,10 @@ fn max_bitrate_within_one_percent_over_10_s() {
     let secs = arrivals[last].0.duration_since(t0).as_secs_f64();
     let rate = bytes as f64 * 8.0 / secs;
     let error = (rate - RATE) / RATE;
-    eprintln!("measured {rate:.0} bit/s over {secs:.3} s ({:+.3}%)", error * 100.0);
+    eprintln!(
+        "measured {rate:.0} bit/s over {secs:.3} s ({:+.3}%)",
+        error * 100.0
+    );
     let stopped = router.stop();
     let longest_gap = arrivals[first..=last]
         .windows(2)
@@ -1045,7 +1094,11 @@ fn sigterm_exits_cleanly_and_promptly() {
     assert!(idle <= 2, "an idle second cost {idle} clock ticks of CPU");
     let stopped = router.stop_with(libc::SIGTERM);
     assert!(stopped.status.success(), "exit status {}", stopped.status);
-    assert!(stopped.took < Duration::from_millis(500), "took {:?}", stopped.took);
+    assert!(
+        stopped.took < Duration::from_millis(500),
+        "took {:?}",
+        stopped.took
+    );
     let err = stopped.stderr.join("\n");
     assert!(err.contains("mavtables counters:"), "{err}");
     assert!(
@@ -1095,7 +1148,10 @@ fn sigint_flushes_for_at_most_a_second_and_exits_cleanly() {
     );
     assert!(err.contains(&line), "want {line:?} in:\n{err}");
     assert!(
-        err.contains(&format!("127.0.0.1:{}: in 50 frames (13350 bytes)", tx.port())),
+        err.contains(&format!(
+            "127.0.0.1:{}: in 50 frames (13350 bytes)",
+            tx.port()
+        )),
         "{err}"
     );
 }

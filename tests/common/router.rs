@@ -145,9 +145,7 @@ impl Guard {
     fn wait(&mut self, timeout: Duration) -> Option<ExitStatus> {
         let deadline = Instant::now() + timeout;
         loop {
-            if self.0.is_none() {
-                return None;
-            }
+            self.0.as_ref()?;
             if let Ok(Some(status)) = self.child().try_wait() {
                 self.0 = None;
                 return Some(status);
@@ -367,7 +365,11 @@ impl Peer {
             .expect("spawn peer.py");
         let what = format!(
             "peer {}",
-            args.iter().take(6).map(AsRef::as_ref).collect::<Vec<_>>().join(" ")
+            args.iter()
+                .take(6)
+                .map(AsRef::as_ref)
+                .collect::<Vec<_>>()
+                .join(" ")
         );
         let out = Lines::new(child.stdout.take().expect("stdout"), &what);
         let stdin = child.stdin.take();
