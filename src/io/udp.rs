@@ -29,13 +29,15 @@ const BATCHES_PER_TURN: usize = 8;
 /// interface losing rate. With a bucket of only one datagram every late wake-up is rate
 /// lost for good, and a busy machine wakes the loop milliseconds late: the end-to-end
 /// test measured 1.7% below `max_bitrate` at 256 kbit/s with two CPU hogs on two cores.
-/// The bucket holds this much time at the configured rate beyond the largest datagram,
-/// so a burst is at most one datagram plus that (41 bytes at 64 kbit/s).
+/// The bucket holds this much time at the configured rate beyond the largest datagram
+/// (40 bytes at 64 kbit/s), but never more than one more largest datagram: so a burst
+/// is at most one datagram plus at most one datagram's worth of catching up.
 const PACING_SLACK_MICROS: u64 = 5_000;
 
 /// The pacer of an interface limited to `rate` bit/s (0 = unlimited).
 fn pacer_for(rate: u64) -> Pacer {
-    let slack = rate.saturating_mul(PACING_SLACK_MICROS) / 8 / 1_000_000;
+    let slack =
+        (rate.saturating_mul(PACING_SLACK_MICROS) / 8 / 1_000_000).min(u64::from(DEFAULT_BURST));
     let burst = u64::from(DEFAULT_BURST).saturating_add(slack);
     Pacer::with_burst(rate, u32::try_from(burst).unwrap_or(u32::MAX))
 }
