@@ -1155,3 +1155,32 @@ fn sigint_flushes_for_at_most_a_second_and_exits_cleanly() {
         "{err}"
     );
 }
+
+/// SIGUSR1 prints the counters and the router keeps routing.
+#[test]
+fn sigusr1_prints_the_counters_and_routing_goes_on() {
+    let s = Scratch::new("sigusr1");
+    let port = free_udp_port();
+    let config = udp_block(port, "") + REJECT_HEARTBEAT_ACCEPT;
+    let mut router = Router::start(&s, &config, 1);
+    let a = UdpPeer::new(port);
+    a.send(&heartbeat(12, 26));
+    router.wait_for("new component 12.26 on 127.0.0.1:");
+    let b = UdpPeer::new(port);
+    b.send(&frame("ATTITUDE", true, 0, 1, 1, 5));
+    assert_eq!(a.recv(1, 5 * SECOND).len(), 1);
+    router.signal(libc::SIGUSR1);
+    let line = router
+        .err
+        .wait_for(&format!("127.0.0.1:{}: in 1 frames", b.port()), 5 * SECOND);
+    assert!(line.contains("out 0 frames"), "{line}");
+    // Still routing after the signal.
+    b.send(&frame("ATTITUDE", true, 1, 1, 1, 6));
+    assert_eq!(a.recv(1, 5 * SECOND).len(), 1);
+    let stopped = router.stop();
+    let counters = stopped.stderr.join("\n");
+    assert!(
+        counters.contains(&format!("127.0.0.1:{}: in 2 frames", b.port())),
+        "{counters}"
+    );
+}
