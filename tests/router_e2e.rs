@@ -1076,17 +1076,7 @@ fn cpu_ticks(pid: u32) -> u64 {
 /// SIGTERM on an idle router: exit 0 at once, counters on stderr; idle it uses no CPU.
 #[test]
 fn sigterm_exits_cleanly_and_promptly() {
-    let s = Scratch::new("sigterm");
-    let port = free_udp_port();
-    let config = udp_block(port, "") + REJECT_HEARTBEAT_ACCEPT;
-    let mut router = Router::start(&s, &config, 1);
-    let a = UdpPeer::new(port);
-    a.send(&heartbeat(12, 26));
-    router.wait_for("new component 12.26 on 127.0.0.1:");
-    let b = UdpPeer::new(port);
-    b.send(&frame("ATTITUDE", true, 0, 1, 1, 5));
-    router.wait_for("new component 1.1 on 127.0.0.1:");
-    assert_eq!(a.recv(1, 5 * SECOND).len(), 1);
+    let (_s, mut router, a, b) = listener_and_sender("sigterm");
     let pid = router.pid();
     let before = cpu_ticks(pid);
     thread::sleep(SECOND);
@@ -1156,10 +1146,10 @@ fn sigint_flushes_for_at_most_a_second_and_exits_cleanly() {
     );
 }
 
-/// SIGUSR1 prints the counters and the router keeps routing.
-#[test]
-fn sigusr1_prints_the_counters_and_routing_goes_on() {
-    let s = Scratch::new("sigusr1");
+/// A router on one UDP port with listener `a` (12.26) learned and sender `b` (1.1) whose
+/// first ATTITUDE `a` has received.
+fn listener_and_sender(tag: &str) -> (Scratch, Router, UdpPeer, UdpPeer) {
+    let s = Scratch::new(tag);
     let port = free_udp_port();
     let config = udp_block(port, "") + REJECT_HEARTBEAT_ACCEPT;
     let mut router = Router::start(&s, &config, 1);
@@ -1168,7 +1158,15 @@ fn sigusr1_prints_the_counters_and_routing_goes_on() {
     router.wait_for("new component 12.26 on 127.0.0.1:");
     let b = UdpPeer::new(port);
     b.send(&frame("ATTITUDE", true, 0, 1, 1, 5));
+    router.wait_for("new component 1.1 on 127.0.0.1:");
     assert_eq!(a.recv(1, 5 * SECOND).len(), 1);
+    (s, router, a, b)
+}
+
+/// SIGUSR1 prints the counters and the router keeps routing.
+#[test]
+fn sigusr1_prints_the_counters_and_routing_goes_on() {
+    let (_s, mut router, a, b) = listener_and_sender("sigusr1");
     router.signal(libc::SIGUSR1);
     let line = router
         .err
