@@ -314,14 +314,21 @@ impl UdpDriver {
                     // This datagram cannot be sent (e.g. no route): count it, go on.
                     self.io_errors += 1;
                     if let Some((address, _)) = self.in_flight.pop_front() {
-                        log::error(&format_args!(
-                            "{}: sending to {address} failed: {e}",
-                            self.label
-                        ));
-                        if let Some(id) = self.by_address.get(&address)
-                            && let Some(r) = self.remotes.get_mut(id)
-                        {
+                        let remote = self
+                            .by_address
+                            .get(&address)
+                            .and_then(|id| self.remotes.get_mut(id));
+                        // Logged once per remote (the counters keep the total), so a dead
+                        // route cannot flood the log.
+                        let first = remote.as_ref().is_none_or(|r| r.counters.send_errors == 0);
+                        if let Some(r) = remote {
                             r.counters.send_errors += 1;
+                        }
+                        if first {
+                            log::error(&format_args!(
+                                "{}: sending to {address} failed: {e} (further failures are only counted)",
+                                self.label
+                            ));
                         }
                     }
                 }
