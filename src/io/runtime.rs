@@ -280,7 +280,11 @@ impl Runtime {
                             }
                         }
                     }
-                    PACING_TIMER => self.timer.acknowledge(),
+                    PACING_TIMER => {
+                        self.timer.acknowledge();
+                        // Fired: whatever the pacers need next is armed afresh.
+                        self.pacing_armed = None;
+                    }
                     Token(t) if (UDP_BASE..SERIAL_BASE).contains(&t) => {
                         if event.is_readable() && stop_by.is_none() {
                             self.receive_udp(t - UDP_BASE, now);
