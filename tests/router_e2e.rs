@@ -345,25 +345,7 @@ fn multiple_senders_at_once() {
 // ----------------------------------------------------------------------------------------
 // 3 and 4. Routing (spec §8.2 #5) with the log at levels 1, 2 and 3 (§8.2 #10)
 
-const ROUTING: &str = "
-chain default {
-    reject if HEARTBEAT;
-    call addr_192_168 if to 192.168;
-    goto addr_172_128 if to 172.0/8;
-    accept if ATTITUDE;
-    reject;
-}
-
-chain addr_192_168 {
-    accept if PARAM_REQUEST_READ;
-    reject if PING;
-}
-
-chain addr_172_128 {
-    accept with priority 3 if SET_HOME_POSITION;
-    accept if MISSION_REQUEST_LIST to 172.128;
-}
-";
+const ROUTING: &str = include_str!("data/config/routing_chains.conf");
 
 /// What the sender (10.10) sends after its HEARTBEAT.
 const ROUTING_SCRIPT: [&str; 10] = [

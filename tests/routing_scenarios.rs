@@ -7,29 +7,12 @@ use mavtables::routing::{Pace, Pacer, RouterOptions, Timestamp};
 use routing::{Net, frame};
 use std::time::Duration;
 
-const ROUTING: &str = "
-# Listeners: 127.1 and 192.168 on UDP, 172.128 on the serial port; sender 10.10 on UDP.
-serial { device ./ttyS0; baudrate 57600; }
-udp { port 14500; max_bitrate 262144; }
-
-chain default {
-    reject if HEARTBEAT;
-    call addr_192_168 if to 192.168;
-    goto addr_172_128 if to 172.0/8;
-    accept if ATTITUDE;
-    reject;
-}
-
-chain addr_192_168 {
-    accept if PARAM_REQUEST_READ;
-    reject if PING;
-}
-
-chain addr_172_128 {
-    accept with priority 3 if SET_HOME_POSITION;
-    accept if MISSION_REQUEST_LIST to 172.128;
-}
-";
+// Listeners: 127.1 and 192.168 on UDP, 172.128 on the serial port; sender 10.10 on UDP.
+const ROUTING: &str = concat!(
+    "serial { device ./ttyS0; baudrate 57600; }\n",
+    "udp { port 14500; max_bitrate 262144; }\n",
+    include_str!("data/config/routing_chains.conf"),
+);
 
 const SENDER: &str = "127.0.0.1:5000";
 const L127: &str = "127.0.0.1:5001";
