@@ -1,14 +1,18 @@
 //! mavtables: a MAVLink router and firewall.
 //!
 //! The crate is layered so that the folder layout shows the architecture:
-//! - [`capture`]: reading `.tlog` and `.pcap` captures (pure);
+//! - [`capture`]: reading raw, `.tlog`, `.pcap` and `.pcapng` captures (pure);
 //! - [`wire`]: MAVLink v1/v2 framing, CRC, the streaming parser, signatures (pure);
 //! - [`dialect`]: generated message tables (ids, names, CRC_EXTRA, lengths, fields);
 //! - [`config`]: the configuration language and its diagnostics;
 //! - [`filter`]: the filter chains;
 //! - [`routing`]: the sans-IO routing core (learning, decisions, queues, pacing);
 //! - [`io`]: the event loop and the UDP / serial drivers;
-//! - [`cli`]: the command line.
+//! - [`cli`]: the command line; [`tools`]: `inspect` and `replay`;
+//! - [`address`]: MAVLink addresses and subnets.
+
+// Every public item says what it is for (CI turns this warning into an error).
+#![warn(missing_docs)]
 
 pub mod address;
 pub mod capture;
