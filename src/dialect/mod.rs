@@ -3,7 +3,7 @@
 //! id, name, CRC_EXTRA, payload lengths, where the target address sits, and the field
 //! layout in wire order so tools can decode any field.
 //!
-//! The table in [`ardupilotmega`] is generated from the official MAVLink XML by
+//! The table in `ardupilotmega.rs` is generated from the official MAVLink XML by
 //! `tools/gen-dialect` (see its README) and committed; nothing here parses XML at
 //! run time.
 
