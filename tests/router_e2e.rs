@@ -1164,3 +1164,31 @@ fn sigusr1_prints_the_counters_and_routing_goes_on() {
         "{counters}"
     );
 }
+
+/// Noise on a serial line that looks like the start of a long frame must not hold up the
+/// valid frame behind it when the line then goes quiet: the held-back bytes are judged
+/// once the line has been quiet for longer than a largest frame takes to arrive.
+#[test]
+fn a_frame_behind_serial_noise_is_not_held_up_on_a_quiet_line() {
+    let s = Scratch::new("quiet-noise");
+    let port = free_udp_port();
+    let dev = s.path("ttyS0");
+    let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
+    let (mut master, _slave) = pty_at(&dev);
+    let mut router = Router::start(&s, &config, 1);
+    let rx = UdpPeer::new(port);
+    rx.send(&heartbeat(12, 26));
+    router.wait_for("new component 12.26 on 127.0.0.1:");
+    // `FE FE FD FD FD 6E` starts a v1 FILE_TRANSFER_PROTOCOL candidate claiming 262
+    // bytes; then one valid frame; then silence.
+    let valid = frame("ATTITUDE", true, 0, 1, 1, 5);
+    let mut bytes = vec![0xFE, 0xFE, 0xFD, 0xFD, 0xFD, 0x6E];
+    bytes.extend(&valid);
+    let start = Instant::now();
+    master.write_all(&bytes).expect("pty write");
+    let got = rx.recv(1, 5 * SECOND);
+    let waited = start.elapsed();
+    assert_eq!(got, vec![valid]);
+    assert!(waited < 2 * SECOND, "the frame waited {waited:?}");
+    router.stop();
+}

@@ -242,12 +242,11 @@ impl Runtime {
             return Duration::ZERO;
         }
         let mut due = next_tick;
-        for t in self
+        let serial_due = self
             .serial
             .iter()
-            .filter_map(SerialDriver::retry_at)
-            .chain(stop_by)
-        {
+            .flat_map(|s| s.retry_at().into_iter().chain(s.stale_at()));
+        for t in serial_due.chain(stop_by) {
             due = due.min(t);
         }
         due.saturating_since(now)
@@ -314,6 +313,11 @@ impl Runtime {
                     }
                 }
             }
+            // Bytes held back on a serial line that has gone quiet are judged now.
+            for s in &mut self.serial {
+                s.finish_stale(&mut self.router, now, &mut self.out, &mut self.unknown);
+            }
+            self.drain_output();
             self.flush_all(now);
             if now >= next_tick {
                 let removed = self.router.tick(now);

@@ -12,6 +12,7 @@ use super::log;
 use super::sys;
 use crate::config::SerialInterface;
 use crate::routing::{LinkId, Output, Packet, Router, Timestamp};
+use crate::wire::frame::MAX_FRAME_LEN;
 use crate::wire::{Parser, ParserStats};
 
 /// First wait before reopening a missing device; doubled up to [`MAX_BACKOFF`].
@@ -22,6 +23,9 @@ const MAX_BACKOFF: Duration = Duration::from_secs(2);
 const READ_CHUNK: usize = 4096;
 /// Reads per wake-up before the loop gets a turn to send.
 const READS_PER_TURN: usize = 16;
+/// Quiet time (beyond a largest frame's transmission time) after which bytes held back
+/// for an incomplete frame are judged.
+const STALE_GAP: Duration = Duration::from_millis(100);
 
 /// Whether the device is open.
 enum State {
@@ -49,6 +53,8 @@ pub struct SerialDriver {
     /// The port refused bytes: wait for it to become writable (only then is
     /// writability watched, so sending does not wake the loop needlessly).
     pub blocked: bool,
+    /// When bytes last arrived.
+    last_rx: Timestamp,
 }
 
 /// The device's link counters as the source of received frames.
@@ -96,6 +102,7 @@ impl SerialDriver {
             buffer: vec![0; READ_CHUNK],
             failures: 0,
             blocked: false,
+            last_rx: Timestamp::ZERO,
         }
     }
 
@@ -211,6 +218,7 @@ impl SerialDriver {
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => return Err(self.lose(now, &e)),
             };
+            self.last_rx = now;
             let mut events = ToRouter {
                 router: &mut *router,
                 out: &mut *out,
@@ -224,6 +232,49 @@ impl SerialDriver {
             self.parser.feed_events(&self.buffer[..n], &mut events);
         }
         Ok(true)
+    }
+
+    /// When the parser's held-back bytes count as stale, if it holds any: a sender
+    /// writes a frame's bytes back to back, so once the line has been quiet for longer
+    /// than a whole largest frame takes at this baud rate (plus 100 ms for USB adapters
+    /// that deliver in chunks), an incomplete candidate is not a frame. Noise that looks
+    /// like the start of a long frame would otherwise hold up the valid frames behind it
+    /// until enough further bytes arrive — seconds on a link that only carries heartbeats.
+    pub fn stale_at(&self) -> Option<Timestamp> {
+        if self.parser.pending_len() == 0 || self.file().is_none() {
+            return None;
+        }
+        let frame_time = Duration::from_micros(
+            MAX_FRAME_LEN as u64 * 10 * 1_000_000 / u64::from(self.config.baudrate.max(1)),
+        );
+        Some(Timestamp::new(
+            self.last_rx.since_start() + STALE_GAP + frame_time,
+        ))
+    }
+
+    /// Ends a stale candidate ([`SerialDriver::stale_at`]): it is rejected and the bytes
+    /// behind its start are scanned again, so the valid frames among them are routed now.
+    pub fn finish_stale(
+        &mut self,
+        router: &mut Router,
+        now: Timestamp,
+        out: &mut Output,
+        unknown: &mut UnknownIds,
+    ) {
+        if self.stale_at().is_none_or(|t| now < t) {
+            return;
+        }
+        let mut events = ToRouter {
+            router,
+            out,
+            now,
+            unknown,
+            link: Port {
+                link: self.link,
+                counters: &mut self.counters,
+            },
+        };
+        self.parser.finish(&mut events);
     }
 
     /// Writes queued packets, highest priority first, as far as the port takes them.
