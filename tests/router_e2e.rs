@@ -1165,11 +1165,11 @@ fn sigusr1_prints_the_counters_and_routing_goes_on() {
     );
 }
 
-/// Noise on a serial line that looks like the start of a long frame must not hold up the
-/// valid frame behind it when the line then goes quiet: the held-back bytes are judged
-/// once the line has been quiet for longer than a largest frame takes to arrive.
+/// Noise that looks like the start of a long frame must not hold up the valid frame
+/// behind it when the line then goes quiet — on a serial port or in a UDP sender's last
+/// datagram: the held-back bytes are judged once the line has been quiet long enough.
 #[test]
-fn a_frame_behind_serial_noise_is_not_held_up_on_a_quiet_line() {
+fn a_frame_behind_noise_is_not_held_up_on_a_quiet_line() {
     let s = Scratch::new("quiet-noise");
     let port = free_udp_port();
     let dev = s.path("ttyS0");
@@ -1181,14 +1181,26 @@ fn a_frame_behind_serial_noise_is_not_held_up_on_a_quiet_line() {
     router.wait_for("new component 12.26 on 127.0.0.1:");
     // `FE FE FD FD FD 6E` starts a v1 FILE_TRANSFER_PROTOCOL candidate claiming 262
     // bytes; then one valid frame; then silence.
-    let valid = frame("ATTITUDE", true, 0, 1, 1, 5);
-    let mut bytes = vec![0xFE, 0xFE, 0xFD, 0xFD, 0xFD, 0x6E];
-    bytes.extend(&valid);
+    let noisy = |valid: &[u8]| -> Vec<u8> {
+        let mut bytes = vec![0xFE, 0xFE, 0xFD, 0xFD, 0xFD, 0x6E];
+        bytes.extend(valid);
+        bytes
+    };
+    let from_serial = frame("ATTITUDE", true, 0, 1, 1, 5);
     let start = Instant::now();
-    master.write_all(&bytes).expect("pty write");
+    master.write_all(&noisy(&from_serial)).expect("pty write");
     let got = rx.recv(1, 5 * SECOND);
     let waited = start.elapsed();
-    assert_eq!(got, vec![valid]);
-    assert!(waited < 2 * SECOND, "the frame waited {waited:?}");
+    assert_eq!(got, vec![from_serial]);
+    assert!(waited < 2 * SECOND, "the serial frame waited {waited:?}");
+
+    let from_udp = frame("ATTITUDE", true, 0, 2, 1, 6);
+    let tx = UdpPeer::new(port);
+    let start = Instant::now();
+    tx.send(&noisy(&from_udp));
+    let got = rx.recv(1, 5 * SECOND);
+    let waited = start.elapsed();
+    assert_eq!(got, vec![from_udp]);
+    assert!(waited < 2 * SECOND, "the UDP frame waited {waited:?}");
     router.stop();
 }

@@ -242,11 +242,12 @@ impl Runtime {
             return Duration::ZERO;
         }
         let mut due = next_tick;
+        let udp_due = self.udp.iter().filter_map(UdpDriver::stale_at);
         let serial_due = self
             .serial
             .iter()
             .flat_map(|s| s.retry_at().into_iter().chain(s.stale_at()));
-        for t in serial_due.chain(stop_by) {
+        for t in serial_due.chain(udp_due).chain(stop_by) {
             due = due.min(t);
         }
         due.saturating_since(now)
@@ -313,7 +314,10 @@ impl Runtime {
                     }
                 }
             }
-            // Bytes held back on a serial line that has gone quiet are judged now.
+            // Bytes held back on a line that has gone quiet are judged now.
+            for u in &mut self.udp {
+                u.finish_stale(&mut self.router, now, &mut self.out, &mut self.unknown);
+            }
             for s in &mut self.serial {
                 s.finish_stale(&mut self.router, now, &mut self.out, &mut self.unknown);
             }

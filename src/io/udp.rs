@@ -23,6 +23,8 @@ const SOCKET_BUFFER: usize = 4 * 1024 * 1024;
 /// Datagrams longer than this are cut (a MAVLink frame is at most 280 bytes; several
 /// frames may share a datagram).
 const DATAGRAM_MAX: usize = 8192;
+/// How long bytes held back for an incomplete frame wait for the sender's next datagram.
+const STALE_GAP: std::time::Duration = std::time::Duration::from_millis(100);
 /// Receive batches taken per wake-up before the loop gets a turn to send.
 const BATCHES_PER_TURN: usize = 8;
 /// How late the loop may wake up for a datagram the pacer held back without the
@@ -68,6 +70,8 @@ pub struct UdpDriver {
     pub pace_deadline: Option<Timestamp>,
     /// Receive or send errors other than "would block".
     pub io_errors: u64,
+    /// When the last datagram arrived.
+    last_rx: Timestamp,
     /// The socket refused datagrams: wait for it to become writable. (Writability is
     /// only watched while this is set: an idle UDP socket is always writable, and
     /// watching it would wake the loop after every datagram sent.)
@@ -132,6 +136,7 @@ impl UdpDriver {
             pace_deadline: None,
             io_errors: 0,
             blocked: false,
+            last_rx: Timestamp::ZERO,
         })
     }
 
@@ -223,6 +228,46 @@ impl UdpDriver {
             };
             parser.feed_events(bytes, &mut events);
         }
+        self.last_rx = now;
+    }
+
+    /// When the bytes held back for an incomplete frame count as stale, if there are
+    /// any: a frame split over datagrams continues in the sender's very next datagram,
+    /// so after [`STALE_GAP`] without one the candidate is judged (see
+    /// [`UdpDriver::finish_stale`]).
+    pub fn stale_at(&self) -> Option<Timestamp> {
+        (self.parser.pending_len() > 0)
+            .then(|| Timestamp::new(self.last_rx.since_start() + STALE_GAP))
+    }
+
+    /// Ends a stale candidate: it is rejected and the bytes behind its start scanned
+    /// again, so valid frames held up behind noise are routed now.
+    pub fn finish_stale(
+        &mut self,
+        router: &mut Router,
+        now: Timestamp,
+        out: &mut Output,
+        unknown: &mut UnknownIds,
+    ) {
+        let (Some(t), Some(address)) = (self.stale_at(), self.last_sender) else {
+            return;
+        };
+        if now < t {
+            return;
+        }
+        let mut events = ToRouter {
+            router,
+            out,
+            now,
+            unknown,
+            link: Sender {
+                address,
+                by_address: &mut self.by_address,
+                remotes: &mut self.remotes,
+                order: &mut self.order,
+            },
+        };
+        self.parser.finish(&mut events);
     }
 
     /// True if this interface owns link `id`.
