@@ -9,6 +9,10 @@ use crate::wire::{Frame, ParseEvents, Rejection};
 
 use super::counters::LinkCounters;
 
+/// How many distinct unknown ids are reported; beyond that they are only counted, so
+/// a flood of random ids can neither fill the log nor grow memory.
+const MAX_REPORTED: usize = 1024;
+
 /// Message ids already reported as unknown (decisions row 2: once per id, not per frame).
 #[derive(Debug, Default)]
 pub struct UnknownIds(HashSet<u32>);
@@ -16,8 +20,14 @@ pub struct UnknownIds(HashSet<u32>);
 impl UnknownIds {
     /// Reports `id` on standard error the first time it is seen.
     pub fn report(&mut self, id: u32) {
-        if self.0.insert(id) {
-            eprintln!("Packet ID (#{id}) is not part of the '{DIALECT_NAME}' MAVLink dialect.");
+        if self.0.len() >= MAX_REPORTED || !self.0.insert(id) {
+            return;
+        }
+        eprintln!("Packet ID (#{id}) is not part of the '{DIALECT_NAME}' MAVLink dialect.");
+        if self.0.len() == MAX_REPORTED {
+            eprintln!(
+                "warning: {MAX_REPORTED} unknown message ids reported; further ones are only counted"
+            );
         }
     }
 }
@@ -54,5 +64,20 @@ impl<L: Source> ParseEvents for ToRouter<'_, L> {
         if let Rejection::UnknownId(id) = why {
             self.unknown.report(id);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reporting_is_bounded() {
+        let mut u = UnknownIds::default();
+        for id in 0..(MAX_REPORTED as u32 * 4) {
+            u.report(id);
+            u.report(id);
+        }
+        assert_eq!(u.0.len(), MAX_REPORTED);
     }
 }
