@@ -943,6 +943,48 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
     row
 }
 
+/// `--latency`: only the latency rounds at 10k frames/s, direct and router mode
+/// interleaved (1 receiver), 5 rounds each: for working on the latency path.
+fn latency_only(exe: &Path, plan: &Plan) {
+    let mut setups = Vec::new();
+    for mode in [Mode::Direct, Mode::Router] {
+        match Setup::new(mode, 1, Some(exe)) {
+            Ok(s) => setups.push((mode, s)),
+            Err(why) => println!("  {mode:?}: unavailable: {why}"),
+        }
+    }
+    let mut qs: Vec<[Vec<f64>; 3]> = setups.iter().map(|_| [vec![], vec![], vec![]]).collect();
+    for _ in 0..5 {
+        for ((mode, setup), q) in setups.iter_mut().zip(&mut qs) {
+            let t = setup.trial(
+                Some(LATENCY_RATE),
+                plan.latency_step,
+                SendMode::Batched,
+                Reading::Eager,
+            );
+            let l = t.latency(&[0.5, 0.99, 0.999]);
+            println!(
+                "  {:<7} p50 {:>5} p99 {:>6} p99.9 {:>6} ns, lost {}",
+                format!("{mode:?}").to_lowercase(),
+                l[0],
+                l[1],
+                l[2],
+                t.lost()
+            );
+            for (v, x) in q.iter_mut().zip(l) {
+                v.push(x as f64 / 1e3);
+            }
+        }
+    }
+    for ((mode, _), q) in setups.iter().zip(qs) {
+        let [a, b, c] = q.map(median);
+        println!(
+            "{:<7} median of rounds: p50 {a:.0} / p99 {b:.0} / p99.9 {c:.0} µs",
+            format!("{mode:?}").to_lowercase()
+        );
+    }
+}
+
 /// Unpaced sending for `duration` with each send mode, interleaved over `rounds`:
 /// median frames/s sent and delivered (direct mode, 1 receiver).
 fn batching_gain(rounds: usize, duration: Duration) -> Result<[(f64, f64); 2], String> {
@@ -1071,6 +1113,10 @@ fn main() {
         if quick { 1 } else { 3 },
         Duration::from_millis(if quick { 300 } else { 700 }),
     );
+    if args.iter().any(|a| a == "--latency") {
+        latency_only(&exe, &plan);
+        return;
+    }
     let mut rows = Vec::new();
     for mode in [Mode::Direct, Mode::Router] {
         for receivers in [1, 3] {

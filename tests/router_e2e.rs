@@ -1145,6 +1145,60 @@ fn listener_and_sender(tag: &str) -> (Scratch, Router, UdpPeer, UdpPeer) {
     (s, router, a, b)
 }
 
+/// A burst reaches every receiver as one datagram per frame, in order, whatever the
+/// frames' lengths. (The router hands runs of equal-length datagrams for one receiver to
+/// the kernel as one UDP GSO message; the receivers here are plain sockets, so this
+/// checks that the kernel cuts them back into exactly the datagrams sent.)
+#[test]
+fn a_burst_arrives_one_frame_per_datagram_in_order() {
+    let (_s, mut router, a, b) = listener_and_sender("burst");
+    let c = UdpPeer::new(
+        b.router
+            .rsplit(':')
+            .next()
+            .and_then(|p| p.parse().ok())
+            .expect("port"),
+    );
+    c.send(&heartbeat(12, 27));
+    router.wait_for("new component 12.27 on 127.0.0.1:");
+    // Runs of one length, broken by shorter and longer frames, v1 and v2 mixed: 120
+    // frames in 12 datagrams of 10, sent back to back so the router reads them together.
+    let kinds = [
+        ("ATTITUDE", true),
+        ("ATTITUDE", true),
+        ("ATTITUDE", true),
+        ("SYS_STATUS", true),
+        ("ATTITUDE", true),
+        ("ATTITUDE", false),
+        ("GPS_RAW_INT", true),
+        ("GPS_RAW_INT", true),
+        ("SCALED_PRESSURE", true),
+        ("ATTITUDE", true),
+    ];
+    let frames: Vec<Vec<u8>> = (0..120u8)
+        .map(|i| {
+            let (name, v2) = kinds[usize::from(i) % kinds.len()];
+            frame(name, v2, i, 1, 1, i)
+        })
+        .collect();
+    for chunk in frames.chunks(10) {
+        b.send(&chunk.concat());
+    }
+    assert_eq!(a.recv(frames.len(), 10 * SECOND), frames, "receiver 12.26");
+    assert_eq!(c.recv(frames.len(), 10 * SECOND), frames, "receiver 12.27");
+    // The counters agree (`a` also got the ATTITUDE of `listener_and_sender`).
+    let stderr = router.stop().stderr;
+    let line = |port: u16| {
+        stderr
+            .iter()
+            .find(|l| l.contains(&format!("127.0.0.1:{port}: in 1 frames")))
+            .cloned()
+            .unwrap_or_default()
+    };
+    assert!(line(a.port()).contains("out 121 frames"), "{stderr:?}");
+    assert!(line(c.port()).contains("out 120 frames"), "{stderr:?}");
+}
+
 /// SIGUSR1 prints the counters and the router keeps routing.
 #[test]
 fn sigusr1_prints_the_counters_and_routing_goes_on() {

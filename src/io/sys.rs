@@ -1,8 +1,9 @@
-//! The only `unsafe` code of mavtables: thin wrappers over three libc calls that the
+//! The only `unsafe` code of mavtables: thin wrappers over the libc calls that the
 //! standard library and mio do not offer.
 //!
 //! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams in one system
-//!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did);
+//!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did), sending runs
+//!   of equal datagrams to one destination as one UDP GSO message (`UDP_SEGMENT`);
 //! - `localtime_r`: the local calendar time for log lines;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
@@ -112,45 +113,139 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
     Ok(n)
 }
 
+/// `UDP_SEGMENT` (linux/udp.h): the socket option and control message of UDP GSO
+/// (Linux 4.18). Defined here because not every libc target exports it.
+const UDP_SEGMENT: libc::c_int = 103;
+
+/// Most datagrams in one GSO message. The kernel takes 64 (`UDP_MAX_SEGMENTS` before
+/// Linux 6.9, 128 after); one batch never holds more than [`MAX_BATCH`] anyway.
+const GSO_MAX_SEGMENTS: usize = 64;
+
+/// Most bytes in one GSO message: an IPv4 datagram's payload is at most 65,507 bytes.
+const GSO_MAX_BYTES: usize = 65_000;
+
+/// Room for one control message carrying a `u16` (`CMSG_SPACE(2)` is 24 bytes on
+/// 64-bit Linux), kept in `u64`s so that it is aligned for `cmsghdr`.
+type CmsgBuf = [u64; 4];
+
+/// True if the kernel offers UDP GSO (`UDP_SEGMENT`) on this socket. A kernel without
+/// it would not refuse the control message but ignore it, and send the whole run as a
+/// single datagram, so GSO is only used where this says yes.
+pub fn gso_supported(fd: &impl AsRawFd) -> bool {
+    let mut value: libc::c_int = 0;
+    let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
+    // SAFETY: both pointers are to live locals of the sizes given.
+    let r = unsafe {
+        libc::getsockopt(
+            fd.as_raw_fd(),
+            libc::SOL_UDP,
+            UDP_SEGMENT,
+            (&mut value as *mut libc::c_int).cast(),
+            &mut len,
+        )
+    };
+    r == 0
+}
+
 /// Sends `datagrams` (destination, bytes) without blocking, as many as the kernel takes
-/// in one call. Returns how many were sent (`WouldBlock` when none could be).
+/// in one `sendmmsg` call. Returns how many datagrams were sent (`WouldBlock` when none
+/// could be).
+///
+/// With `gso`, each run of consecutive datagrams to the same destination and of the same
+/// length (the run's last may be shorter) goes to the kernel as one UDP GSO message: it
+/// travels the IP stack once and is cut back into exactly the same datagrams on the way
+/// out (by the network card, the driver, or on loopback the receiving socket). The peer
+/// receives what it would have without GSO; the router pays one send instead of many.
+/// A kernel or route that refuses GSO answers `EIO` or `EINVAL`: call again without.
 pub fn send_batch<'a>(
     fd: &impl AsRawFd,
     datagrams: impl IntoIterator<Item = (SocketAddrV4, &'a [u8])>,
+    gso: bool,
 ) -> io::Result<usize> {
-    // SAFETY (all three): arrays of plain-old-data C structs; all-zero is valid.
+    // SAFETY (all four): arrays of plain-old-data C structs; all-zero is valid.
     let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
     let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
     let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
+    let mut cmsgs: [CmsgBuf; MAX_BATCH] = [[0; 4]; MAX_BATCH];
+    let mut to = [None::<SocketAddrV4>; MAX_BATCH];
     let mut n = 0;
-    for (i, (to, bytes)) in datagrams.into_iter().take(MAX_BATCH).enumerate() {
+    for (i, (addr, bytes)) in datagrams.into_iter().take(MAX_BATCH).enumerate() {
         n = i + 1;
-        names[i] = to_sockaddr(to);
+        to[i] = Some(addr);
+        names[i] = to_sockaddr(addr);
         // The kernel only reads through this pointer (sendmmsg).
         iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
         iovs[i].iov_len = bytes.len();
-        msgs[i].msg_hdr.msg_name = (&mut names[i] as *mut libc::sockaddr_in).cast();
-        msgs[i].msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
-        msgs[i].msg_hdr.msg_iov = &mut iovs[i];
-        msgs[i].msg_hdr.msg_iovlen = 1;
     }
     if n == 0 {
         return Ok(0);
     }
+    // Group the datagrams into messages: `runs[m]` datagrams from `firsts[m]` on.
+    let mut firsts = [0usize; MAX_BATCH];
+    let mut runs = [0usize; MAX_BATCH];
+    let mut messages = 0;
+    let mut i = 0;
+    while i < n {
+        let size = iovs[i].iov_len;
+        let mut end = i + 1;
+        let mut total = size;
+        while gso
+            && end < n
+            && to[end] == to[i]
+            && iovs[end].iov_len <= size
+            && iovs[end].iov_len > 0
+            && end - i < GSO_MAX_SEGMENTS
+            && total + iovs[end].iov_len <= GSO_MAX_BYTES
+        {
+            total += iovs[end].iov_len;
+            end += 1;
+            if iovs[end - 1].iov_len < size {
+                break; // a shorter datagram can only end a run
+            }
+        }
+        firsts[messages] = i;
+        runs[messages] = end - i;
+        messages += 1;
+        i = end;
+    }
+    for m in 0..messages {
+        let (first, run) = (firsts[m], runs[m]);
+        let hdr = &mut msgs[m].msg_hdr;
+        hdr.msg_name = (&mut names[first] as *mut libc::sockaddr_in).cast();
+        hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
+        hdr.msg_iov = &mut iovs[first];
+        hdr.msg_iovlen = run as _;
+        if run > 1 {
+            hdr.msg_control = cmsgs[m].as_mut_ptr().cast();
+            // SAFETY: CMSG_SPACE only computes a size.
+            hdr.msg_controllen = unsafe { libc::CMSG_SPACE(2) } as _;
+            // SAFETY: the control buffer set just above is 32 bytes, aligned for
+            // `cmsghdr`, and holds CMSG_SPACE(2) = 24 bytes, so the first header and its
+            // two data bytes lie inside it.
+            unsafe {
+                let c = libc::CMSG_FIRSTHDR(hdr);
+                (*c).cmsg_level = libc::SOL_UDP;
+                (*c).cmsg_type = UDP_SEGMENT;
+                (*c).cmsg_len = libc::CMSG_LEN(2) as _;
+                let size = iovs[first].iov_len as u16;
+                std::ptr::write_unaligned(libc::CMSG_DATA(c).cast::<u16>(), size);
+            }
+        }
+    }
     // SAFETY: every pointer refers to a local array or a borrowed slice that outlives
-    // the call.
+    // the call; each message's iovecs are `run` consecutive entries of `iovs`.
     let sent = unsafe {
         libc::sendmmsg(
             fd.as_raw_fd(),
             msgs.as_mut_ptr(),
-            n as libc::c_uint,
+            messages as libc::c_uint,
             libc::MSG_DONTWAIT,
         )
     };
     if sent < 0 {
         return Err(io::Error::last_os_error());
     }
-    Ok(sent as usize)
+    Ok(runs[..sent as usize].iter().sum())
 }
 
 /// Local calendar time of a UNIX time in seconds: (year, month 1–12, day, hour, minute,
@@ -269,7 +364,10 @@ mod tests {
         };
         let payloads: Vec<Vec<u8>> = (0..10u8).map(|i| vec![i; 1 + i as usize]).collect();
         let dgs: Vec<(SocketAddrV4, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
-        assert_eq!(send_batch(&tx, dgs.iter().copied()).expect("send"), 10);
+        assert_eq!(
+            send_batch(&tx, dgs.iter().copied(), false).expect("send"),
+            10
+        );
         let mut batch = RecvBatch::new(2048);
         let mut got = Vec::new();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
@@ -293,6 +391,83 @@ mod tests {
             recv_batch(&rx, &mut batch).err().map(|e| e.kind()),
             Some(io::ErrorKind::WouldBlock)
         );
+    }
+
+    fn v4(s: &UdpSocket) -> SocketAddrV4 {
+        match s.local_addr().expect("addr") {
+            std::net::SocketAddr::V4(a) => a,
+            _ => unreachable!("bound to IPv4"),
+        }
+    }
+
+    /// Every datagram waiting on `rx`, in order (waits up to 5 s for `want`).
+    fn drain(rx: &UdpSocket, want: usize) -> Vec<Vec<u8>> {
+        let mut batch = RecvBatch::new(2048);
+        let mut got = Vec::new();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while got.len() < want && std::time::Instant::now() < deadline {
+            match recv_batch(rx, &mut batch) {
+                Ok(_) => got.extend(batch.iter().map(|(_, b)| b.to_vec())),
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => std::thread::yield_now(),
+                Err(e) => panic!("recv: {e}"),
+            }
+        }
+        got
+    }
+
+    #[test]
+    fn gso_batches_arrive_as_the_same_datagrams_in_order() {
+        let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let rx = [
+            UdpSocket::bind("127.0.0.1:0").expect("bind"),
+            UdpSocket::bind("127.0.0.1:0").expect("bind"),
+        ];
+        rx.iter()
+            .for_each(|s| s.set_nonblocking(true).expect("nonblocking"));
+        let to = [v4(&rx[0]), v4(&rx[1])];
+        // Runs of equal lengths, runs ended by a shorter datagram, a longer one after a
+        // shorter one, alternating destinations, one datagram alone: every way a run
+        // can start and end. Each payload is unique so order and cuts are visible.
+        let plan: [(usize, usize); 16] = [
+            (0, 30),
+            (0, 30),
+            (0, 30),
+            (0, 12),
+            (0, 40),
+            (0, 40),
+            (1, 40),
+            (1, 40),
+            (0, 40),
+            (1, 280),
+            (1, 280),
+            (1, 279),
+            (1, 280),
+            (0, 20),
+            (0, 20),
+            (0, 20),
+        ];
+        let payloads: Vec<Vec<u8>> = plan
+            .iter()
+            .enumerate()
+            .map(|(i, &(_, len))| (0..len).map(|k| (i * 7 + k) as u8).collect())
+            .collect();
+        let dgs: Vec<(SocketAddrV4, &[u8])> = plan
+            .iter()
+            .zip(&payloads)
+            .map(|(&(r, _), p)| (to[r], p.as_slice()))
+            .collect();
+        let gso = gso_supported(&tx);
+        let sent = send_batch(&tx, dgs.iter().copied(), gso).expect("send");
+        assert_eq!(sent, plan.len(), "gso = {gso}");
+        for (r, rx) in rx.iter().enumerate() {
+            let want: Vec<Vec<u8>> = plan
+                .iter()
+                .zip(&payloads)
+                .filter(|((d, _), _)| *d == r)
+                .map(|(_, p)| p.clone())
+                .collect();
+            assert_eq!(drain(rx, want.len()), want, "receiver {r}, gso = {gso}");
+        }
     }
 
     #[test]

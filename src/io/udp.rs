@@ -27,6 +27,9 @@ const DATAGRAM_MAX: usize = 8192;
 const STALE_GAP: std::time::Duration = std::time::Duration::from_millis(100);
 /// Receive batches taken per wake-up before the loop gets a turn to send.
 const BATCHES_PER_TURN: usize = 8;
+/// Most packets one link sends in a row before the next link's turn, when the
+/// interface has no `max_bitrate` (see [`UdpDriver::flush`]).
+const SEND_TURN: usize = 16;
 /// How late the loop may wake up for a datagram the pacer held back without the
 /// interface losing rate. With a bucket of only one datagram every late wake-up is rate
 /// lost for good, and a busy machine wakes the loop milliseconds late: the end-to-end
@@ -76,6 +79,10 @@ pub struct UdpDriver {
     /// only watched while this is set: an idle UDP socket is always writable, and
     /// watching it would wake the loop after every datagram sent.)
     pub blocked: bool,
+    /// Runs of equal datagrams to one remote are sent as one UDP GSO message (see
+    /// [`sys::send_batch`]): on when the kernel offers it, off for good once a send
+    /// with GSO is refused.
+    gso: bool,
 }
 
 /// Binds the socket of `config` (non-blocking, large buffers).
@@ -120,6 +127,7 @@ impl UdpDriver {
     /// Binds the interface's socket.
     pub fn open(config: &UdpInterface) -> io::Result<Self> {
         let socket = bind(config)?;
+        let gso = sys::gso_supported(&socket);
         let rate = config.max_bitrate.unwrap_or(0);
         Ok(UdpDriver {
             label: format!("udp {}:{}", config.address, config.port),
@@ -137,6 +145,7 @@ impl UdpDriver {
             io_errors: 0,
             blocked: false,
             last_rx: Timestamp::ZERO,
+            gso,
         })
     }
 
@@ -294,16 +303,18 @@ impl UdpDriver {
     }
 
     /// The next link (round robin) with a packet waiting.
-    fn next_ready(&mut self, router: &Router) -> Option<LinkId> {
+    fn next_ready(&self, router: &Router) -> Option<LinkId> {
         let n = self.order.len();
-        for k in 0..n {
-            let id = self.order[(self.next_turn + k) % n];
-            if router.peek(id).is_some() {
-                self.next_turn = (self.next_turn + k + 1) % n;
-                return Some(id);
-            }
+        (0..n)
+            .map(|k| self.order[(self.next_turn + k) % n])
+            .find(|id| router.peek(*id).is_some())
+    }
+
+    /// Moves the round robin past link `id`.
+    fn pass_turn(&mut self, id: LinkId) {
+        if let Some(i) = self.order.iter().position(|o| *o == id) {
+            self.next_turn = (i + 1) % self.order.len();
         }
-        None
     }
 
     /// Sends what the links' queues hold, round robin between remotes, as far as the
@@ -312,31 +323,44 @@ impl UdpDriver {
     pub fn flush(&mut self, router: &mut Router, now: Timestamp) {
         self.pace_deadline = None;
         self.blocked = false;
+        // Unpaced, a link's turn is a run of up to `SEND_TURN` packets, so that its
+        // datagrams lie next to each other in the batch and go out as one GSO message;
+        // paced, a turn is one packet, so the bandwidth is shared fairly.
+        let turn = if self.pacer.rate() == 0 { SEND_TURN } else { 1 };
         loop {
-            while self.in_flight.len() < MAX_BATCH {
+            'fill: while self.in_flight.len() < MAX_BATCH {
                 let Some(id) = self.next_ready(router) else {
                     break;
                 };
-                let len = router.peek(id).map_or(0, |p| p.len());
-                match self.pacer.check(now, len) {
-                    Pace::Now => {}
-                    Pace::At(t) => {
-                        self.pace_deadline = Some(t);
-                        break;
-                    }
-                }
-                let (Some(packet), Some(remote)) = (router.pop(id), self.remotes.get(&id)) else {
+                self.pass_turn(id);
+                let Some(address) = self.remotes.get(&id).map(|r| r.address) else {
                     break;
                 };
-                self.pacer.sent(now, len);
-                self.in_flight.push_back((remote.address, packet));
+                for _ in 0..turn {
+                    if self.in_flight.len() >= MAX_BATCH {
+                        break;
+                    }
+                    let Some(len) = router.peek(id).map(|p| p.len()) else {
+                        break;
+                    };
+                    match self.pacer.check(now, len) {
+                        Pace::Now => {}
+                        Pace::At(t) => {
+                            self.pace_deadline = Some(t);
+                            break 'fill;
+                        }
+                    }
+                    let Some(packet) = router.pop(id) else { break };
+                    self.pacer.sent(now, len);
+                    self.in_flight.push_back((address, packet));
+                }
             }
             if self.in_flight.is_empty() {
                 return;
             }
             let wanted = self.in_flight.len();
             let batch = self.in_flight.iter().map(|(a, p)| (*a, &p[..]));
-            match sys::send_batch(&self.socket, batch) {
+            match sys::send_batch(&self.socket, batch, self.gso) {
                 Ok(sent) => {
                     for _ in 0..sent {
                         if let Some((address, packet)) = self.in_flight.pop_front() {
@@ -353,6 +377,17 @@ impl UdpDriver {
                     return;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // The kernel or the route refused GSO (no checksum offload, IPsec, ...):
+                // send every datagram on its own from now on.
+                Err(e)
+                    if self.gso && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) =>
+                {
+                    self.gso = false;
+                    log::warn(&format_args!(
+                        "{}: UDP segmentation offload refused ({e}); sending datagrams one by one",
+                        self.label
+                    ));
+                }
                 // A late ICMP error for an earlier datagram surfaced here; nothing was sent.
                 Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
                 Err(e) => {
@@ -404,5 +439,90 @@ impl UdpDriver {
                 queue_drops: router.link(*id).map_or(0, |l| l.queue().dropped()),
             })
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Interface, load};
+    use crate::routing::RouterOptions;
+    use crate::wire::encode::{Header, encode_v2};
+    use std::net::UdpSocket as StdUdpSocket;
+    use std::os::fd::AsRawFd;
+    use std::time::{Duration, Instant};
+
+    fn frame(seq: u8, system: u8) -> Vec<u8> {
+        let header = Header {
+            seq,
+            system,
+            component: 1,
+        };
+        let mut out = Vec::new();
+        // ATTITUDE (id 30, 28 bytes), every byte set so nothing is truncated.
+        encode_v2(header, 30, &[seq | 1; 28], None, &mut out).expect("encode");
+        out
+    }
+
+    /// Receives on `driver` until `want` frames were routed or 5 s passed.
+    fn receive_until(driver: &mut UdpDriver, router: &mut Router, out: &mut Output, want: usize) {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let mut unknown = UnknownIds::default();
+        while driver.parser_stats().frames < want as u64 && Instant::now() < deadline {
+            driver.receive(router, Timestamp::ZERO, out, &mut unknown);
+            std::thread::yield_now();
+        }
+        out.clear();
+    }
+
+    /// When the route refuses GSO (here: a socket with UDP checksums turned off, which
+    /// the kernel refuses to segment), the interface falls back to one datagram at a
+    /// time for good and loses nothing.
+    #[test]
+    fn refused_gso_falls_back_to_single_datagrams() {
+        let loaded = load("udp { port 0; address 127.0.0.1; }\nchain default { accept; }\n")
+            .expect("config");
+        let Some(Interface::Udp(iface)) = loaded.config.interfaces.first() else {
+            panic!("one udp interface");
+        };
+        let mut router = Router::with_options(&loaded.config, RouterOptions::default());
+        let mut driver = UdpDriver::open(iface).expect("bind");
+        let to = driver.local_addr().expect("addr");
+        let (listener, sender) = (
+            StdUdpSocket::bind("127.0.0.1:0").expect("bind"),
+            StdUdpSocket::bind("127.0.0.1:0").expect("bind"),
+        );
+        listener
+            .set_read_timeout(Some(Duration::from_secs(5)))
+            .expect("timeout");
+        let mut out = Output::default();
+        listener.send_to(&frame(0, 12), to).expect("send");
+        receive_until(&mut driver, &mut router, &mut out, 1);
+        // SO_NO_CHECK: UDP GSO needs checksum offload and refuses these sockets.
+        let one: libc::c_int = 1;
+        // SAFETY (test): passes a pointer to a live c_int and its size.
+        let r = unsafe {
+            libc::setsockopt(
+                driver.socket_mut().as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_NO_CHECK,
+                (&one as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        assert_eq!(r, 0, "SO_NO_CHECK");
+        let burst: Vec<Vec<u8>> = (1..=10).map(|i| frame(i, 1)).collect();
+        sender.send_to(&burst.concat(), to).expect("send");
+        receive_until(&mut driver, &mut router, &mut out, 11);
+        driver.flush(&mut router, Timestamp::ZERO);
+        let mut got = Vec::new();
+        let mut buf = [0u8; 2048];
+        while got.len() < burst.len() {
+            let n = listener.recv(&mut buf).expect("a datagram within 5 s");
+            got.push(buf[..n].to_vec());
+        }
+        assert_eq!(got, burst);
+        assert!(!driver.gso, "GSO is off after the refusal");
+        assert!(driver.idle(&router));
     }
 }
