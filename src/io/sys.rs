@@ -4,6 +4,8 @@
 //! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams in one system
 //!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did), sending runs
 //!   of equal datagrams to one destination as one UDP GSO message (`UDP_SEGMENT`);
+//! - `SO_RCVBUFFORCE` / `SO_SNDBUFFORCE`: socket buffers beyond the system's limit
+//!   when the process is privileged;
 //! - `localtime_r`: the local calendar time for log lines;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
@@ -111,6 +113,33 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
     }
     batch.count = n;
     Ok(n)
+}
+
+/// Asks for a socket buffer of `bytes` beyond the system's limit
+/// (`net.core.rmem_max` / `wmem_max`): `SO_RCVBUFFORCE` or `SO_SNDBUFFORCE`, which only a
+/// process with `CAP_NET_ADMIN` may use. Fails with `EPERM` otherwise.
+pub fn force_buffer_size(fd: &impl AsRawFd, receive: bool, bytes: usize) -> io::Result<()> {
+    let option = if receive {
+        libc::SO_RCVBUFFORCE
+    } else {
+        libc::SO_SNDBUFFORCE
+    };
+    let value = libc::c_int::try_from(bytes).unwrap_or(libc::c_int::MAX);
+    // SAFETY: passes a pointer to a live c_int and its size.
+    let r = unsafe {
+        libc::setsockopt(
+            fd.as_raw_fd(),
+            libc::SOL_SOCKET,
+            option,
+            (&value as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
 }
 
 /// `UDP_SEGMENT` (linux/udp.h): the socket option and control message of UDP GSO
@@ -467,6 +496,24 @@ mod tests {
                 .map(|(_, p)| p.clone())
                 .collect();
             assert_eq!(drain(rx, want.len()), want, "receiver {r}, gso = {gso}");
+        }
+    }
+
+    #[test]
+    fn long_gso_runs_arrive_whole() {
+        let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        rx.set_nonblocking(true).expect("nonblocking");
+        let to = v4(&rx);
+        for (count, len) in [(16usize, 21usize), (64, 21), (64, 22), (40, 280)] {
+            let payloads: Vec<Vec<u8>> = (0..count)
+                .map(|i| (0..len).map(|k| (i * 3 + k) as u8).collect())
+                .collect();
+            let dgs: Vec<(SocketAddrV4, &[u8])> =
+                payloads.iter().map(|p| (to, p.as_slice())).collect();
+            let sent = send_batch(&tx, dgs.iter().copied(), gso_supported(&tx)).expect("send");
+            assert_eq!(sent, count);
+            assert_eq!(drain(&rx, count), payloads, "{count} x {len}");
         }
     }
 

@@ -88,9 +88,27 @@ pub struct UdpDriver {
 /// Binds the socket of `config` (non-blocking, large buffers).
 fn bind(config: &UdpInterface) -> io::Result<UdpSocket> {
     let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
-    // Larger buffers where the system allows; the defaults remain otherwise.
-    let _ = socket.set_recv_buffer_size(SOCKET_BUFFER);
-    let _ = socket.set_send_buffer_size(SOCKET_BUFFER);
+    // Beyond the system's limit when privileged, else up to it.
+    if sys::force_buffer_size(&socket, true, SOCKET_BUFFER).is_err() {
+        let _ = socket.set_recv_buffer_size(SOCKET_BUFFER);
+    }
+    if sys::force_buffer_size(&socket, false, SOCKET_BUFFER).is_err() {
+        let _ = socket.set_send_buffer_size(SOCKET_BUFFER);
+    }
+    // Linux reports twice the size asked for (the rest is its bookkeeping).
+    if let Ok(got) = socket.recv_buffer_size()
+        && got < SOCKET_BUFFER
+    {
+        log::warn(&format_args!(
+            "udp {}:{}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
+             may be dropped by the kernel; raise the limit with \
+             `sysctl -w net.core.rmem_max={SOCKET_BUFFER}`",
+            config.address,
+            config.port,
+            got / 2 / 1024,
+            SOCKET_BUFFER / 1024
+        ));
+    }
     socket.set_nonblocking(true)?;
     let address = SocketAddr::V4(SocketAddrV4::new(config.address, config.port));
     socket.bind(&address.into())?;
