@@ -1199,6 +1199,55 @@ fn a_burst_arrives_one_frame_per_datagram_in_order() {
     assert!(line(c.port()).contains("out 120 frames"), "{stderr:?}");
 }
 
+/// The router's peak resident memory, from `/proc`.
+fn peak_rss_kib(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .expect("VmHWM")
+}
+
+/// A flood from hundreds of source ports (spoofed senders, say) onto a slow interface
+/// fills every link's queue at once; all queues together stay within the router's
+/// shared bound, so memory stays small, and the router keeps routing elsewhere.
+#[test]
+fn a_flood_from_many_ports_cannot_grow_memory() {
+    let s = Scratch::new("port-flood");
+    let (slow, fast) = (free_udp_port(), free_udp_port());
+    let config =
+        udp_block(slow, "max_bitrate 8000; ") + &udp_block(fast, "") + REJECT_HEARTBEAT_ACCEPT;
+    let mut router = Router::start(&s, &config, 0);
+    // 400 senders, 25 broadcasts of 267 bytes each: every frame is queued for the
+    // other 399 links, 4 million queue entries (1.2 GB in the queues' reckoning) if
+    // nothing bounded them together.
+    // Each sender is its own component, so that every link learns one to route to.
+    let senders: Vec<UdpPeer> = (0..400).map(|_| UdpPeer::new(slow)).collect();
+    for i in 0..25u8 {
+        for (k, p) in senders.iter().enumerate() {
+            let (sys, comp) = (1 + (k % 200) as u8, 1 + (k / 200) as u8);
+            p.send(&frame("ENCAPSULATED_DATA", true, i, sys, comp, i));
+        }
+    }
+    // Routing goes on: a listener on the other interface gets a frame sent now.
+    let listener = UdpPeer::new(fast);
+    listener.send(&heartbeat(12, 26));
+    let probe = frame("ATTITUDE", true, 0, 5, 9, 9);
+    let pid = router.pid();
+    let deadline = Instant::now() + 10 * SECOND;
+    let mut found = false;
+    while !found && Instant::now() < deadline {
+        senders[0].send(&probe);
+        found = listener.recv(1, SECOND / 10).contains(&probe);
+    }
+    assert!(found, "the probe never arrived");
+    let peak = peak_rss_kib(pid);
+    assert!(peak < 10 * 1024, "peak RSS {peak} KiB");
+    let counters = router.stop().stderr.join("\n");
+    assert!(counters.contains("dropped"), "{counters}");
+}
+
 /// SIGUSR1 prints the counters and the router keeps routing.
 #[test]
 fn sigusr1_prints_the_counters_and_routing_goes_on() {

@@ -335,3 +335,86 @@ fn queue_overflow_is_counted_and_bounded() {
     assert_eq!(q.dropped(), 990);
     assert_eq!(net.drops, 990);
 }
+
+/// Sum of every link's queue, as the queues themselves count it.
+fn queued_everywhere(net: &Net) -> (usize, Vec<usize>) {
+    let lens = net
+        .router
+        .links()
+        .map(|l| l.queue().len())
+        .collect::<Vec<_>>();
+    let bytes = net.router.links().map(|l| l.queue().bytes()).sum();
+    (bytes, lens)
+}
+
+#[test]
+fn shared_queue_capacity_bounds_many_links_and_spreads_the_loss() {
+    // 299 bytes a packet in the queues' reckoning (267-byte frame + 32); 10 per link,
+    // 20 in all.
+    let options = RouterOptions {
+        queue_capacity: 10 * 299,
+        total_queue_capacity: 20 * 299,
+        ..RouterOptions::default()
+    };
+    let mut net = Net::with_options("chain default { reject if HEARTBEAT; accept; }\n", options);
+    // 50 remotes (say, a flood of spoofed source ports), none sending anything back.
+    for k in 0..50 {
+        net.heartbeat(&format!("u:{k}"), &format!("3.{}", k + 1));
+    }
+    let f = frame("ENCAPSULATED_DATA", "2.1", None);
+    for _ in 0..1000 {
+        net.recv("sender", &f);
+    }
+    let (bytes, lens) = queued_everywhere(&net);
+    assert_eq!(bytes, net.router.queued_bytes());
+    // Full, but for the eighth freed at once when it overflows.
+    let queued: usize = lens.iter().sum();
+    assert!(bytes <= 20 * 299, "{bytes} bytes queued");
+    assert!(queued >= 17, "{lens:?}");
+    // The link holding the most always gives way, so the loss is spread: without the
+    // shared bound every link would hold its own 10.
+    assert!(lens.iter().all(|&n| n <= 2), "{lens:?}");
+    // Every packet offered is either queued or counted as a drop.
+    assert_eq!(net.drops, 50 * 1000 - queued as u64);
+    let counted: u64 = net.router.links().map(|l| l.queue().dropped()).sum();
+    assert_eq!(counted, net.drops);
+    // Sending frees the shared capacity again.
+    net.drain("u:0");
+    assert_eq!(queued_everywhere(&net).0, net.router.queued_bytes());
+}
+
+#[test]
+fn shared_queue_capacity_keeps_higher_priorities() {
+    // FILE_TRANSFER_PROTOCOL frames: 266 bytes + 32 in the queues' reckoning.
+    let cost = 266 + 32;
+    let options = RouterOptions {
+        queue_capacity: 100 * cost,
+        total_queue_capacity: 4 * cost,
+        ..RouterOptions::default()
+    };
+    let mut net = Net::with_options(
+        "chain default {\n    reject if HEARTBEAT;\n    accept with priority 5 if to 9.9;\n    accept;\n}\n",
+        options,
+    );
+    net.heartbeat("slow", "9.9");
+    net.heartbeat("other", "8.8");
+    // Priority 0 packets for 8.8 fill the shared capacity...
+    for _ in 0..4 {
+        net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.1", Some("8.8"));
+    }
+    assert_eq!(net.router.queued_bytes(), 4 * cost);
+    // ...priority 5 packets for 9.9 push them out, although it is another link...
+    for _ in 0..4 {
+        net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.1", Some("9.9"));
+    }
+    assert_eq!(net.router.queued_bytes(), 4 * cost);
+    assert_eq!(net.drops, 4);
+    // ...and a priority 0 packet finds no room above them: it is the one dropped.
+    net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.1", Some("8.8"));
+    assert_eq!(net.drops, 5);
+    let slow = net.drain("slow");
+    assert_eq!(slow.len(), 4, "{slow:?}");
+    assert!(slow.iter().all(|p| p.contains("to 9.9")), "{slow:?}");
+    assert_eq!(net.drain("other"), Vec::<String>::new());
+    assert_eq!(net.router.queued_bytes(), 0);
+}

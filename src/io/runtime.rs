@@ -28,9 +28,11 @@ const SERIAL_BASE: usize = 1 << 20;
 const TICK: Duration = Duration::from_secs(1);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
-/// Per-link queue bound. 1 MiB is a minute of backlog for a 128 kbit/s radio, and keeps
-/// the whole router within a few MiB under any overload.
+/// Per-link queue bound: 1 MiB is a minute of backlog for a 128 kbit/s radio.
 pub const QUEUE_CAPACITY: usize = 1024 * 1024;
+/// Bound of all queues together, so that no number of links (a flood of spoofed UDP
+/// senders included) takes the router beyond a few MiB.
+pub const TOTAL_QUEUE_CAPACITY: usize = 4 * 1024 * 1024;
 
 /// Everything the loop owns.
 struct Runtime {
@@ -374,6 +376,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     let options = RouterOptions {
         event_level: loglevel,
         queue_capacity: QUEUE_CAPACITY,
+        total_queue_capacity: TOTAL_QUEUE_CAPACITY,
         ..RouterOptions::default()
     };
     let mut router = Router::with_options(config, options);

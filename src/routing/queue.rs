@@ -101,6 +101,32 @@ impl PacketQueue {
         PushOutcome::Queued { evicted }
     }
 
+    /// The priority of the packet [`PacketQueue::drop_lowest`] would drop.
+    pub fn lowest_priority(&self) -> Option<i32> {
+        self.buckets.first_key_value().map(|(p, _)| *p)
+    }
+
+    /// Drops the oldest packet of the lowest priority (counted as a drop) to make room
+    /// elsewhere. Returns the bytes it freed (0 if the queue was empty).
+    pub fn drop_lowest(&mut self) -> usize {
+        let before = self.bytes;
+        if self.take(true).is_some() {
+            self.dropped += 1;
+        }
+        before - self.bytes
+    }
+
+    /// Counts a packet that was dropped before it reached this queue (the shared
+    /// capacity was used up by packets of higher priority).
+    pub fn count_drop(&mut self) {
+        self.dropped += 1;
+    }
+
+    /// What `packet` counts against a capacity: its length plus [`PACKET_OVERHEAD`].
+    pub fn cost_of(packet: &[u8]) -> usize {
+        packet.len().saturating_add(PACKET_OVERHEAD)
+    }
+
     /// Removes the oldest packet of the lowest (`lowest`) or highest priority.
     fn take(&mut self, lowest: bool) -> Option<Packet> {
         let mut entry = if lowest {

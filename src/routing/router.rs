@@ -1,5 +1,7 @@
 //! The router: every link, the shared filter, and what happens to each received frame.
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -7,7 +9,7 @@ use super::dispatch::{Decision, decide};
 use super::event::{Event, LinkRef, PacketSummary};
 use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
-use super::queue::{DEFAULT_CAPACITY, Packet, PushOutcome};
+use super::queue::{DEFAULT_CAPACITY, Packet, PacketQueue, PushOutcome};
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
@@ -21,6 +23,12 @@ pub struct RouterOptions {
     pub expiry: Duration,
     /// Bytes each link's queue may hold ([`DEFAULT_CAPACITY`]).
     pub queue_capacity: usize,
+    /// Bytes all queues together may hold (`usize::MAX`: no limit but each link's). A
+    /// packet that would pass it first pushes out the oldest packets of the lowest
+    /// priority queued anywhere (from the link holding the most, among equals) until an
+    /// eighth of it is free, or is dropped itself if everything queued ranks above it.
+    /// So many links (say, a flood of spoofed UDP senders) cannot together hold more.
+    pub total_queue_capacity: usize,
     /// Events above this level (0–3) are not produced at all (3: every event).
     pub event_level: u8,
     /// Entries of the filter's verdict memo ([`cache::DEFAULT_SLOTS`]; 0 = no memo).
@@ -32,6 +40,7 @@ impl Default for RouterOptions {
         RouterOptions {
             expiry: DEFAULT_EXPIRY,
             queue_capacity: DEFAULT_CAPACITY,
+            total_queue_capacity: usize::MAX,
             event_level: 3,
             cache_slots: cache::DEFAULT_SLOTS,
         }
@@ -65,6 +74,8 @@ pub struct Router {
     links: Vec<Link>,
     next_id: u64,
     options: RouterOptions,
+    /// Bytes held by all queues (each packet counted once per queue holding it).
+    queued_bytes: usize,
 }
 
 impl Router {
@@ -80,6 +91,7 @@ impl Router {
             links: Vec::new(),
             next_id: 0,
             options,
+            queued_bytes: 0,
         }
     }
 
@@ -181,7 +193,8 @@ impl Router {
         }
 
         let mut packet: Option<Packet> = None;
-        for link in &mut self.links {
+        for i in 0..self.links.len() {
+            let link = &self.links[i];
             let decision = decide(&mut self.filter, &link.pool, now, message_id, src, target);
             match decision {
                 Decision::Silent => {}
@@ -189,13 +202,8 @@ impl Router {
                     let bytes = packet
                         .get_or_insert_with(|| Arc::from(frame.as_bytes()))
                         .clone();
-                    match link.queue.push(bytes, priority) {
-                        PushOutcome::Queued { evicted } => {
-                            out.queue_drops += evicted as u64;
-                            out.queued.push(link.id());
-                        }
-                        PushOutcome::Dropped => out.queue_drops += 1,
-                    }
+                    self.push(i, bytes, priority, out);
+                    let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
                         out.events.push(Event::Accepted {
                             packet: summary,
@@ -218,6 +226,68 @@ impl Router {
         }
     }
 
+    /// Queues `packet` on link `i`, within the link's and the shared capacity.
+    fn push(&mut self, i: usize, packet: Packet, priority: i32, out: &mut Output) {
+        let cost = PacketQueue::cost_of(&packet);
+        if self.queued_bytes.saturating_add(cost) > self.options.total_queue_capacity
+            && !self.make_room(cost, priority, out)
+        {
+            self.links[i].queue.count_drop();
+            out.queue_drops += 1;
+            return;
+        }
+        let link = &mut self.links[i];
+        let before = link.queue.bytes();
+        let outcome = link.queue.push(packet, priority);
+        self.queued_bytes = self.queued_bytes - before + link.queue.bytes();
+        match outcome {
+            PushOutcome::Queued { evicted } => {
+                out.queue_drops += evicted as u64;
+                out.queued.push(link.id());
+            }
+            PushOutcome::Dropped => out.queue_drops += 1,
+        }
+    }
+
+    /// Frees shared capacity for a packet of `cost` bytes and `priority`: drops the
+    /// oldest packets of the lowest priority queued anywhere, each from the link holding
+    /// the most among those with such a packet, never one that ranks above the new one.
+    /// Frees an eighth of the capacity beyond what is needed, so that under a sustained
+    /// flood the scan over all links runs once per many packets, not for each. Returns
+    /// false if the new packet still does not fit.
+    fn make_room(&mut self, cost: usize, priority: i32, out: &mut Output) -> bool {
+        let cap = self.options.total_queue_capacity;
+        let goal = cap.saturating_sub(cap / 8).max(cost);
+        let key = |k: usize, q: &PacketQueue| {
+            q.lowest_priority()
+                .map(|p| Reverse((p, Reverse(q.bytes()), k)))
+        };
+        let mut victims: BinaryHeap<_> = self
+            .links
+            .iter()
+            .enumerate()
+            .filter_map(|(k, l)| key(k, &l.queue))
+            .collect();
+        while self.queued_bytes.saturating_add(cost) > goal {
+            let Some(Reverse((p, _, k))) = victims.pop() else {
+                break;
+            };
+            if p > priority {
+                break;
+            }
+            let queue = &mut self.links[k].queue;
+            self.queued_bytes -= queue.drop_lowest();
+            out.queue_drops += 1;
+            victims.extend(key(k, queue));
+        }
+        self.queued_bytes.saturating_add(cost) <= cap
+    }
+
+    /// Bytes held by all queues together (see [`RouterOptions::total_queue_capacity`]).
+    pub fn queued_bytes(&self) -> usize {
+        self.queued_bytes
+    }
+
     /// The next packet link `id` should send, without removing it.
     pub fn peek(&self, id: LinkId) -> Option<&Packet> {
         self.link(id).and_then(|l| l.queue.peek())
@@ -226,7 +296,9 @@ impl Router {
     /// Removes and returns the next packet link `id` should send.
     pub fn pop(&mut self, id: LinkId) -> Option<Packet> {
         let i = self.index(id)?;
-        self.links[i].queue.pop()
+        let packet = self.links[i].queue.pop()?;
+        self.queued_bytes -= PacketQueue::cost_of(&packet);
+        Some(packet)
     }
 
     /// Periodic housekeeping at `now`: forgets expired addresses and removes UDP links
@@ -234,15 +306,18 @@ impl Router {
     /// I/O layer forgets their `ip:port`). Call it about once a second.
     pub fn tick(&mut self, now: Timestamp) -> Vec<LinkId> {
         let mut removed = Vec::new();
+        let mut freed = 0;
         self.links.retain_mut(|l| {
             if l.is_stale(now) {
                 removed.push(l.id());
+                freed += l.queue.bytes();
                 false
             } else {
                 l.pool.prune(now);
                 true
             }
         });
+        self.queued_bytes -= freed;
         removed
     }
 
