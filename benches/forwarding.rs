@@ -985,6 +985,39 @@ fn latency_only(exe: &Path, plan: &Plan) {
     }
 }
 
+/// `--cpu`: only the router's CPU per frame at 50k frames/s, 1 and 3 receivers, 7
+/// rounds of 1 s each (routers of other builds: `MAVTABLES_BENCH_ROUTER`).
+fn cpu_only(exe: &Path) {
+    for receivers in [1, 3] {
+        let mut setup = match Setup::new(Mode::Router, receivers, Some(exe)) {
+            Ok(s) => s,
+            Err(why) => {
+                println!("  router x{receivers}: unavailable: {why}");
+                continue;
+            }
+        };
+        let mut v = Vec::new();
+        for _ in 0..7 {
+            let t = setup.trial(
+                Some(CPU_RATE),
+                Duration::from_secs(1),
+                SendMode::Batched,
+                Reading::Lazy,
+            );
+            if let Some(us) = per_frame_us(t.router_cpu, t.generator.sent) {
+                v.push(us);
+            }
+        }
+        let shown: Vec<String> = v.iter().map(|us| format!("{us:.2}")).collect();
+        println!(
+            "router x{receivers}: CPU/frame @{}: median {:.2} µs ({})",
+            fmt_rate(CPU_RATE),
+            median(v),
+            shown.join(", ")
+        );
+    }
+}
+
 /// Unpaced sending for `duration` with each send mode, interleaved over `rounds`:
 /// median frames/s sent and delivered (direct mode, 1 receiver).
 fn batching_gain(rounds: usize, duration: Duration) -> Result<[(f64, f64); 2], String> {
@@ -1115,6 +1148,10 @@ fn main() {
     );
     if args.iter().any(|a| a == "--latency") {
         latency_only(&exe, &plan);
+        return;
+    }
+    if args.iter().any(|a| a == "--cpu") {
+        cpu_only(&exe);
         return;
     }
     let mut rows = Vec::new();
