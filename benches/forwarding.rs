@@ -185,6 +185,16 @@ mod sys {
         }
     }
 
+    /// Sends `signal` to process `pid` (SIGSTOP / SIGCONT for the backlog runs).
+    pub fn signal(pid: u32, signal: libc::c_int) -> io::Result<()> {
+        // SAFETY: kill has no memory preconditions.
+        if unsafe { libc::kill(pid as libc::pid_t, signal) } == 0 {
+            Ok(())
+        } else {
+            Err(io::Error::last_os_error())
+        }
+    }
+
     /// Clock ticks per second, the unit of `utime`/`stime` in `/proc/<pid>/stat`.
     pub fn clock_ticks() -> u64 {
         // SAFETY: sysconf has no preconditions.
@@ -1015,7 +1025,58 @@ fn cpu_only(exe: &Path) {
             median(v),
             shown.join(", ")
         );
+        match backlog_cpu(&mut setup, 30, 4000) {
+            Ok((frames, us)) => println!(
+                "router x{receivers}: CPU/frame working off a backlog (full batches): {us:.2} µs over {frames} frames"
+            ),
+            Err(why) => println!("router x{receivers}: backlog run unavailable: {why}"),
+        }
     }
+}
+
+/// The router's CPU per frame when it works through a backlog, so that every receive
+/// and send is a full batch: `rounds` times, the router is stopped (SIGSTOP), `per_round`
+/// frames are queued in its socket, and it is let go (SIGCONT) for 100 ms, after which
+/// every sink must have them all. Returns (frames forwarded, µs of router CPU per frame) over all rounds
+/// (the CPU clock counts in 10 ms ticks, hence many rounds).
+fn backlog_cpu(setup: &mut Setup, rounds: usize, per_round: usize) -> Result<(u64, f64), String> {
+    let router = setup.router.as_ref().ok_or("no router")?;
+    let (pid, to) = (router.child.id(), router.addr);
+    let mut buf = Vec::with_capacity(per_round * 24);
+    let mut total = Duration::ZERO;
+    let mut frames = 0u64;
+    let mut dgram = [0u8; DGRAM_MAX];
+    for _ in 0..rounds {
+        sys::signal(pid, libc::SIGSTOP).map_err(|e| format!("SIGSTOP: {e}"))?;
+        buf.clear();
+        for i in 0..per_round {
+            encode_probe(setup.next_seq + i as u32, 0, &mut buf);
+        }
+        setup.next_seq += per_round as u32;
+        let msgs: Vec<(&[u8], SocketAddrV4)> =
+            buf.chunks(buf.len() / per_round).map(|f| (f, to)).collect();
+        send_all(&setup.gen_sock, &msgs, SendMode::Batched);
+        let before = router.cpu().ok_or("no CPU time")?;
+        sys::signal(pid, libc::SIGCONT).map_err(|e| format!("SIGCONT: {e}"))?;
+        // Read only once the router is done: a sink blocked in `recv` would be woken for
+        // every datagram, at the router's expense (about 1 µs each on this VM).
+        thread::sleep(Duration::from_millis(100));
+        for sink in &setup.sinks {
+            let mut got = 0;
+            let start = Instant::now();
+            while got < per_round && start.elapsed() < Duration::from_secs(5) {
+                if sink.recv(&mut dgram).is_ok() {
+                    got += 1;
+                }
+            }
+            if got < per_round {
+                return Err(format!("a sink got {got} of {per_round} frames"));
+            }
+        }
+        total += router.cpu().ok_or("no CPU time")?.saturating_sub(before);
+        frames += per_round as u64;
+    }
+    Ok((frames, total.as_secs_f64() * 1e6 / frames as f64))
 }
 
 /// Unpaced sending for `duration` with each send mode, interleaved over `rounds`:
