@@ -339,3 +339,32 @@ fn full_rendering_has_source_line_and_caret() {
         "f:2:7: expected a valid port number\n\tport a35;\n\t     ^^^\n"
     );
 }
+
+#[test]
+fn two_interfaces_on_one_port_or_device() {
+    check(
+        "udp { port 14550; }\nudp { port 14550; address 127.0.0.1; }",
+        "2:1: udp interface 127.0.0.1:14550 clashes with the udp interface on line 1 (0.0.0.0:14550)",
+    );
+    check(
+        "udp { port 14550; address 10.0.0.1; }\n\nudp { address 10.0.0.1; port 14550; }",
+        "3:1: udp interface 10.0.0.1:14550 clashes with the udp interface on line 1 (10.0.0.1:14550)",
+    );
+    check(
+        "serial { device /dev/ttyUSB0; }\nserial { device /dev/ttyUSB0; baudrate 57600; }",
+        "2:1: serial device '/dev/ttyUSB0' is already used by the serial interface on line 1",
+    );
+    // Different addresses, different ports, port 0 (any free port): no clash.
+    for ok in [
+        "udp { port 14550; address 10.0.0.1; }\nudp { port 14550; address 10.0.0.2; }",
+        "udp { port 14550; }\nudp { port 14551; }",
+        "udp { port 0; }\nudp { port 0; }",
+        "serial { device /dev/ttyUSB0; }\nserial { device /dev/ttyUSB1; }",
+    ] {
+        assert!(config::load(ok).is_ok(), "{ok}");
+    }
+    // The whole message: the offending line, a caret and what to do.
+    let text = all("serial { device /dev/ttyS0; }\nserial { device /dev/ttyS0; }\n");
+    assert!(text.contains("serial { device /dev/ttyS0; }"), "{text}");
+    assert!(text.contains("one serial block only"), "{text}");
+}

@@ -34,6 +34,10 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     cx.register_chains();
     let mut default_action = DefaultAction::Reject;
     let mut interfaces = Vec::new();
+    // Interfaces so far with the line of their keyword, to catch two claiming one
+    // socket or device.
+    let mut udp_seen: Vec<(Ipv4Addr, u16, usize)> = Vec::new();
+    let mut serial_seen: Vec<(String, usize)> = Vec::new();
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -51,13 +55,15 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                     DefaultAction::Reject
                 };
             }
-            Item::Udp { settings, .. } => {
+            Item::Udp { keyword, settings } => {
                 if let Some(udp) = cx.udp(settings) {
+                    cx.no_shared_port(*keyword, &udp, &mut udp_seen);
                     interfaces.push(Interface::Udp(udp));
                 }
             }
             Item::Serial { keyword, settings } => {
                 if let Some(serial) = cx.serial(*keyword, settings) {
+                    cx.no_shared_device(*keyword, &serial, &mut serial_seen);
                     interfaces.push(Interface::Serial(serial));
                 }
             }
@@ -179,6 +185,62 @@ impl<'a> Checker<'a, '_> {
             }
         }
         ok.then_some(udp)
+    }
+
+    /// Two `udp` blocks cannot listen on one port where their addresses overlap (the
+    /// same address, or either being 0.0.0.0): the second could not be bound. Port 0
+    /// (any free port) never clashes.
+    fn no_shared_port(
+        &mut self,
+        keyword: Span,
+        udp: &UdpInterface,
+        seen: &mut Vec<(Ipv4Addr, u16, usize)>,
+    ) {
+        let line = self.line(keyword);
+        let clash = seen.iter().find(|(address, port, _)| {
+            *port == udp.port
+                && udp.port != 0
+                && (*address == udp.address
+                    || address.is_unspecified()
+                    || udp.address.is_unspecified())
+        });
+        if let Some((address, port, first)) = clash {
+            self.error(
+                Diagnostic::new(
+                    keyword,
+                    format!(
+                        "udp interface {}:{} clashes with the udp interface on line {first} ({address}:{port})",
+                        udp.address, udp.port
+                    ),
+                )
+                .with_note("two interfaces cannot listen on one port of one address; give this one another port"),
+            );
+        }
+        seen.push((udp.address, udp.port, line));
+    }
+
+    /// Two `serial` blocks cannot name one device: they would split its bytes between
+    /// them.
+    fn no_shared_device(
+        &mut self,
+        keyword: Span,
+        serial: &SerialInterface,
+        seen: &mut Vec<(String, usize)>,
+    ) {
+        let line = self.line(keyword);
+        if let Some((_, first)) = seen.iter().find(|(d, _)| *d == serial.device) {
+            self.error(
+                Diagnostic::new(
+                    keyword,
+                    format!(
+                        "serial device '{}' is already used by the serial interface on line {first}",
+                        serial.device
+                    ),
+                )
+                .with_note("each device can belong to one serial block only"),
+            );
+        }
+        seen.push((serial.device.clone(), line));
     }
 
     fn serial(&mut self, keyword: Span, settings: &[SerialSetting]) -> Option<SerialInterface> {
