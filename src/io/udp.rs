@@ -396,9 +396,12 @@ impl UdpDriver {
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 // The kernel or the route refused GSO (no checksum offload, IPsec, ...):
-                // send every datagram on its own from now on.
+                // send every datagram on its own from now on. (Only if the message that
+                // failed was a GSO run: a lone datagram's error is its own.)
                 Err(e)
-                    if self.gso && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) =>
+                    if self.gso
+                        && self.front_is_run()
+                        && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) =>
                 {
                     self.gso = false;
                     log::warn(&format_args!(
@@ -431,6 +434,15 @@ impl UdpDriver {
                     }
                 }
             }
+        }
+    }
+
+    /// True if the first message of the next send is a GSO run of several datagrams
+    /// (the grouping rule of [`sys::send_batch`]).
+    fn front_is_run(&self) -> bool {
+        match (self.in_flight.front(), self.in_flight.get(1)) {
+            (Some((a, p)), Some((b, q))) => a == b && q.len() <= p.len(),
+            _ => false,
         }
     }
 
