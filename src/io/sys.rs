@@ -517,6 +517,48 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Any batch, cut into GSO runs however it falls, reaches each receiver as the
+        /// same datagrams in the same order.
+        #[test]
+        fn any_batch_arrives_unchanged(
+            plan in proptest::collection::vec(
+                (
+                    // Few destinations and few lengths, so that runs of every kind form.
+                    proptest::sample::select(vec![0usize, 0, 0, 1, 2]),
+                    proptest::sample::select(vec![1usize, 12, 21, 22, 40, 279, 280]),
+                    proptest::prelude::any::<u8>(),
+                ),
+                1..=MAX_BATCH,
+            )
+        ) {
+            let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+            let rx: Vec<UdpSocket> = (0..3).map(|_| UdpSocket::bind("127.0.0.1:0").expect("bind")).collect();
+            rx.iter().for_each(|s| s.set_nonblocking(true).expect("nonblocking"));
+            let to: Vec<SocketAddrV4> = rx.iter().map(v4).collect();
+            let payloads: Vec<Vec<u8>> = plan
+                .iter()
+                .map(|&(_, len, seed)| (0..len).map(|k| seed.wrapping_add(k as u8)).collect())
+                .collect();
+            let dgs: Vec<(SocketAddrV4, &[u8])> =
+                plan.iter().zip(&payloads).map(|(&(r, _, _), p)| (to[r], p.as_slice())).collect();
+            let mut sent = 0;
+            while sent < dgs.len() {
+                sent += send_batch(&tx, dgs[sent..].iter().copied(), gso_supported(&tx)).expect("send");
+            }
+            for (r, rx) in rx.iter().enumerate() {
+                let want: Vec<Vec<u8>> = plan
+                    .iter()
+                    .zip(&payloads)
+                    .filter(|((d, _, _), _)| *d == r)
+                    .map(|(_, p)| p.clone())
+                    .collect();
+                proptest::prop_assert_eq!(drain(rx, want.len()), want);
+            }
+        }
+    }
+
     #[test]
     fn timer_fires_after_its_delay_and_can_be_disarmed() {
         let t = TimerFd::new().expect("timerfd");
