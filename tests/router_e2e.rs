@@ -945,6 +945,21 @@ fn garbage_and_malformed_frames_lose_no_valid_frame() {
         unknown.len(),
         "reported once per id: {unknown:?}"
     );
+    // Each sender's counters name the frames it lost to a bad checksum: at least the six
+    // broken on purpose (junk may add candidates of its own).
+    let bad_crc = |link: &str| -> u64 {
+        stopped
+            .stderr
+            .iter()
+            .find(|l| l.trim_start().starts_with(&format!("{link}: in ")))
+            .and_then(|l| l.strip_suffix(" bad checksum"))
+            .and_then(|l| l.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no counters for {link}: {:?}", stopped.stderr))
+    };
+    assert!(bad_crc(&format!("127.0.0.1:{}", tx.port())) >= 6);
+    assert!(bad_crc(&dev) >= 6);
+    assert_eq!(bad_crc(&format!("127.0.0.1:{}", rx.port())), 0);
 }
 
 // ----------------------------------------------------------------------------------------

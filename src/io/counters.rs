@@ -17,6 +17,8 @@ pub struct LinkCounters {
     pub send_errors: u64,
     /// Largest number of bytes waiting in the link's queue.
     pub queue_high_water: usize,
+    /// Frames from the link dropped for a bad checksum.
+    pub bad_crc: u64,
 }
 
 impl LinkCounters {
@@ -53,7 +55,7 @@ impl fmt::Display for LinkReport<'_> {
         let c = &self.counters;
         write!(
             f,
-            "{}: in {} frames ({} bytes), out {} frames ({} bytes), dropped {} (queue full) + {} (send errors), queue high-water {} bytes",
+            "{}: in {} frames ({} bytes), out {} frames ({} bytes), dropped {} (queue full) + {} (send errors), queue high-water {} bytes, {} bad checksum",
             self.name,
             c.frames_in,
             c.bytes_in,
@@ -61,7 +63,8 @@ impl fmt::Display for LinkReport<'_> {
             c.bytes_out,
             self.queue_drops,
             c.send_errors,
-            c.queue_high_water
+            c.queue_high_water,
+            c.bad_crc
         )
     }
 }

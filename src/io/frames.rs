@@ -37,6 +37,9 @@ impl UnknownIds {
 pub trait Source {
     /// The link of the stream's current sender, created if need be.
     fn link(&mut self, router: &mut Router, now: Timestamp) -> (LinkId, &mut LinkCounters);
+    /// The counters of the current sender's link if it exists (a UDP remote gets a link
+    /// only once it has sent a valid frame).
+    fn counters(&mut self) -> Option<&mut LinkCounters>;
 }
 
 /// Parser events of one stream, routed through the core.
@@ -61,8 +64,14 @@ impl<L: Source> ParseEvents for ToRouter<'_, L> {
     }
 
     fn rejected(&mut self, _offset: u64, why: Rejection) {
-        if let Rejection::UnknownId(id) = why {
-            self.unknown.report(id);
+        match why {
+            Rejection::UnknownId(id) => self.unknown.report(id),
+            Rejection::BadCrc => {
+                if let Some(c) = self.link.counters() {
+                    c.bad_crc += 1;
+                }
+            }
+            _ => {}
         }
     }
 }

@@ -67,6 +67,10 @@ impl Source for Port<'_> {
     fn link(&mut self, _router: &mut Router, _now: Timestamp) -> (LinkId, &mut LinkCounters) {
         (self.link, self.counters)
     }
+
+    fn counters(&mut self) -> Option<&mut LinkCounters> {
+        Some(self.counters)
+    }
 }
 
 fn open_port(config: &SerialInterface) -> io::Result<File> {

@@ -139,6 +139,11 @@ impl Source for Sender<'_> {
         });
         (id, &mut remote.counters)
     }
+
+    fn counters(&mut self) -> Option<&mut LinkCounters> {
+        let id = self.by_address.get(&self.address)?;
+        self.remotes.get_mut(id).map(|r| &mut r.counters)
+    }
 }
 
 impl UdpDriver {
