@@ -881,8 +881,10 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
         if !t.zero_loss() && t.on_rate() {
             t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
         }
+        let cpu = per_frame_us(t.router_cpu, t.generator.sent)
+            .map_or(String::new(), |us| format!(", router CPU/frame {us:.2} µs"));
         println!(
-            "  {label:<10} {:>6}/s: sent {:>8} at {:>6}/s, lost {:>7} ({:.3}%), send errors {}, sink errors {}",
+            "  {label:<10} {:>6}/s: sent {:>8} at {:>6}/s, lost {:>7} ({:.3}%), send errors {}, sink errors {}{cpu}",
             fmt_rate(rate),
             t.generator.sent,
             fmt_rate(t.achieved()),
