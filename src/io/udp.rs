@@ -325,19 +325,15 @@ impl UdpDriver {
         self.order.retain(|id| self.remotes.contains_key(id));
     }
 
-    /// The next link (round robin) with a packet waiting.
-    fn next_ready(&self, router: &Router) -> Option<LinkId> {
+    /// The next link (round robin) with a packet waiting; the turn after it goes to the
+    /// link that follows it.
+    fn next_ready(&mut self, router: &Router) -> Option<LinkId> {
         let n = self.order.len();
-        (0..n)
-            .map(|k| self.order[(self.next_turn + k) % n])
-            .find(|id| router.peek(*id).is_some())
-    }
-
-    /// Moves the round robin past link `id`.
-    fn pass_turn(&mut self, id: LinkId) {
-        if let Some(i) = self.order.iter().position(|o| *o == id) {
-            self.next_turn = (i + 1) % self.order.len();
-        }
+        let i = (0..n)
+            .map(|k| (self.next_turn + k) % n)
+            .find(|&i| router.peek(self.order[i]).is_some())?;
+        self.next_turn = (i + 1) % n;
+        Some(self.order[i])
     }
 
     /// Sends what the links' queues hold, round robin between remotes, as far as the
@@ -355,7 +351,6 @@ impl UdpDriver {
                 let Some(id) = self.next_ready(router) else {
                     break;
                 };
-                self.pass_turn(id);
                 let Some(address) = self.remotes.get(&id).map(|r| r.address) else {
                     break;
                 };
