@@ -185,7 +185,9 @@ pub fn gso_supported(fd: &impl AsRawFd) -> bool {
 /// travels the IP stack once and is cut back into exactly the same datagrams on the way
 /// out (by the network card, the driver, or on loopback the receiving socket). The peer
 /// receives what it would have without GSO; the router pays one send instead of many.
-/// A kernel or route that refuses GSO answers `EIO` or `EINVAL`: call again without.
+/// When the kernel or the route refuses a GSO run (`EIO` or `EINVAL` for a message of
+/// several datagrams), the error comes back as [`io::ErrorKind::Unsupported`]: call
+/// again without GSO.
 pub fn send_batch<'a>(
     fd: &impl AsRawFd,
     datagrams: impl IntoIterator<Item = (SocketAddrV4, &'a [u8])>,
@@ -272,7 +274,15 @@ pub fn send_batch<'a>(
         )
     };
     if sent < 0 {
-        return Err(io::Error::last_os_error());
+        let e = io::Error::last_os_error();
+        // sendmmsg fails only when its first message does.
+        if runs[0] > 1 && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) {
+            return Err(io::Error::new(
+                io::ErrorKind::Unsupported,
+                format!("UDP segmentation offload refused: {e}"),
+            ));
+        }
+        return Err(e);
     }
     Ok(runs[..sent as usize].iter().sum())
 }

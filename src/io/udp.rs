@@ -395,17 +395,12 @@ impl UdpDriver {
                     return;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                // The kernel or the route refused GSO (no checksum offload, IPsec, ...):
-                // send every datagram on its own from now on. (Only if the message that
-                // failed was a GSO run: a lone datagram's error is its own.)
-                Err(e)
-                    if self.gso
-                        && self.front_is_run()
-                        && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) =>
-                {
+                // The kernel or the route refused a GSO run (no checksum offload,
+                // IPsec, ...): send every datagram on its own from now on.
+                Err(e) if self.gso && e.kind() == io::ErrorKind::Unsupported => {
                     self.gso = false;
                     log::warn(&format_args!(
-                        "{}: UDP segmentation offload refused ({e}); sending datagrams one by one",
+                        "{}: {e}; sending datagrams one by one",
                         self.label
                     ));
                 }
@@ -415,10 +410,7 @@ impl UdpDriver {
                     // This datagram cannot be sent (e.g. no route): count it, go on.
                     self.io_errors += 1;
                     if let Some((address, _)) = self.in_flight.pop_front() {
-                        let remote = self
-                            .by_address
-                            .get(&address)
-                            .and_then(|id| self.remotes.get_mut(id));
+                        let remote = self.remote_mut(address);
                         // Logged once per remote (the counters keep the total), so a dead
                         // route cannot flood the log.
                         let first = remote.as_ref().is_none_or(|r| r.counters.send_errors == 0);
@@ -437,19 +429,14 @@ impl UdpDriver {
         }
     }
 
-    /// True if the first message of the next send is a GSO run of several datagrams
-    /// (the grouping rule of [`sys::send_batch`]).
-    fn front_is_run(&self) -> bool {
-        match (self.in_flight.front(), self.in_flight.get(1)) {
-            (Some((a, p)), Some((b, q))) => a == b && q.len() <= p.len(),
-            _ => false,
-        }
+    /// The remote at `address`, if it still has a link.
+    fn remote_mut(&mut self, address: SocketAddrV4) -> Option<&mut Remote> {
+        let id = self.by_address.get(&address)?;
+        self.remotes.get_mut(id)
     }
 
     fn count_sent(&mut self, address: SocketAddrV4, len: usize) {
-        if let Some(id) = self.by_address.get(&address)
-            && let Some(r) = self.remotes.get_mut(id)
-        {
+        if let Some(r) = self.remote_mut(address) {
             r.counters.sent(len);
         }
     }

@@ -68,13 +68,9 @@ impl PacketQueue {
         }
     }
 
-    fn cost(p: &Packet) -> usize {
-        p.len().saturating_add(PACKET_OVERHEAD)
-    }
-
     /// Queues `packet` with `priority`, dropping lower-priority or older packets if full.
     pub fn push(&mut self, packet: Packet, priority: i32) -> PushOutcome {
-        let cost = Self::cost(&packet);
+        let cost = Self::cost_of(&packet);
         let mut evicted = 0;
         if self.bytes.saturating_add(cost) > self.capacity {
             let ahead: usize = match priority.checked_add(1) {
@@ -137,7 +133,7 @@ impl PacketQueue {
         let bucket = entry.get_mut();
         let p = bucket.packets.pop_front();
         if let Some(p) = &p {
-            let cost = Self::cost(p);
+            let cost = Self::cost_of(p);
             bucket.bytes -= cost;
             self.bytes -= cost;
             self.len -= 1;
