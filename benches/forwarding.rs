@@ -19,12 +19,17 @@
 //!
 //! Figures, per mode and number of receivers: the highest rate of a ladder (25k … 1M
 //! frames/s, 2 s steps, a lossy step is retried once) with zero loss; CPU time per frame
-//! sent, of the router (`/proc/<pid>/stat`) and of this process, at 50k frames/s;
+//! sent, of the forwarder and of this process (`/proc/<pid>/stat`), at 50k frames/s;
 //! latency p50/p99/p99.9 at 10k frames/s (medians of 3 rounds); the router's peak RSS
 //! (`VmHWM`) before and after 2 s at 10× its zero-loss rate.
 //!
 //! Modes: *direct* sends each frame straight to every sink (the machine's ceiling);
-//! *router* sends to `mavtables --config <temp file>`, which must forward to the sinks.
+//! *relay* sends to the least forwarder there can be, a process of this benchmark that
+//! blocks in `recvmmsg` and sends every datagram on unparsed (the floor under any router,
+//! measured in the same run); *router* sends to `mavtables --config <temp file>`, which
+//! must forward to the sinks. `--cpu` also measures a process that only receives, the
+//! floor of CPU per received frame. The forwarders' CPU time is read to the nanosecond
+//! from `/proc/<pid>/task/*/schedstat`.
 //! Each sink announces itself with a HEARTBEAT (systems 101, 102, 103) to the router,
 //! once before the run and then every second; SYSTEM_TIME has no target, so the router
 //! forwards it to every link but the generator's.
@@ -119,16 +124,19 @@ mod sys {
     }
 
     /// Receives up to [`BATCH`] datagrams with one `recvmmsg(2)`, waiting (up to the
-    /// socket's read timeout) for the first only; fills `lens` and returns the count.
+    /// socket's read timeout) for the first only; fills `lens` and `froms` (the senders)
+    /// and returns the count.
     pub fn recv_batch(
         fd: RawFd,
         bufs: &mut [[u8; super::DGRAM_MAX]; BATCH],
         lens: &mut [usize; BATCH],
+        froms: &mut [SocketAddrV4; BATCH],
     ) -> io::Result<usize> {
         let mut iovs = [libc::iovec {
             iov_base: std::ptr::null_mut(),
             iov_len: 0,
         }; BATCH];
+        let mut addrs = [sockaddr(SocketAddrV4::new(0.into(), 0)); BATCH];
         // SAFETY: as in send_batch.
         let mut hdrs: [libc::mmsghdr; BATCH] = unsafe { std::mem::zeroed() };
         for (i, buf) in bufs.iter_mut().enumerate() {
@@ -136,9 +144,12 @@ mod sys {
             iovs[i].iov_len = buf.len();
             hdrs[i].msg_hdr.msg_iov = &mut iovs[i];
             hdrs[i].msg_hdr.msg_iovlen = 1;
+            hdrs[i].msg_hdr.msg_name = &mut addrs[i] as *mut _ as *mut libc::c_void;
+            hdrs[i].msg_hdr.msg_namelen = size_of::<libc::sockaddr_in>() as libc::socklen_t;
         }
-        // SAFETY: every header points at one iovec on this stack frame covering one of
-        // the caller's buffers, all alive and exclusively borrowed for the call.
+        // SAFETY: every header points at one iovec and one address on this stack frame,
+        // the iovec covering one of the caller's buffers, all alive and exclusively
+        // borrowed for the call.
         let r = unsafe {
             libc::recvmmsg(
                 fd,
@@ -152,8 +163,16 @@ mod sys {
             return Err(io::Error::last_os_error());
         }
         let n = r as usize;
-        for (len, hdr) in lens.iter_mut().zip(&hdrs[..n]) {
+        for ((len, hdr), (from, a)) in lens
+            .iter_mut()
+            .zip(&hdrs[..n])
+            .zip(froms.iter_mut().zip(&addrs))
+        {
             *len = hdr.msg_len as usize;
+            *from = SocketAddrV4::new(
+                u32::from_be(a.sin_addr.s_addr).into(),
+                u16::from_be(a.sin_port),
+            );
         }
         Ok(n)
     }
@@ -425,6 +444,7 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
     let mut parser = Parser::new();
     let mut bufs = Box::new([[0u8; DGRAM_MAX]; sys::BATCH]);
     let mut lens = [0usize; sys::BATCH];
+    let mut froms = [SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0); sys::BATCH];
     let hb = job.announce.map(|(_, sys_id)| heartbeat(sys_id));
     let mut next_hb = Instant::now() + Duration::from_secs(1);
     while !job.stop.load(Ordering::Relaxed) {
@@ -434,7 +454,7 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
             let _ = job.sock.send_to(hb, router);
             next_hb += Duration::from_secs(1);
         }
-        let n = match sys::recv_batch(job.sock.as_raw_fd(), &mut bufs, &mut lens) {
+        let n = match sys::recv_batch(job.sock.as_raw_fd(), &mut bufs, &mut lens, &mut froms) {
             Ok(n) => n,
             Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
             Err(e) if e.kind() == ErrorKind::Interrupted => 0,
@@ -488,35 +508,49 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
 // ---------------------------------------------------------------------------------------
 // The router under test
 
-/// A running `mavtables` with a generated configuration, killed on drop.
-struct Router {
+/// A forwarding process under test, killed on drop: `mavtables` with a generated
+/// configuration, or the minimal relay ([`relay_serve`]).
+struct Forwarder {
     child: Child,
     addr: SocketAddrV4,
     dir: PathBuf,
 }
 
-impl Router {
-    /// Starts `exe` on a free port of 127.0.0.1, output to a log file in a temp dir.
-    fn start(exe: &Path) -> Result<Router, String> {
+impl Forwarder {
+    /// Starts the mavtables binary `exe` (router mode) or this benchmark's minimal relay
+    /// (the other modes) on a free port of 127.0.0.1, output to a log file in a temp dir.
+    fn start(exe: &Path, mode: Mode) -> Result<Forwarder, String> {
         let port = free_port().map_err(|e| format!("no free port: {e}"))?;
-        let dir = std::env::temp_dir().join(format!("mavtables-bench-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("mavtables-bench-{}-{port}", std::process::id()));
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        let config = dir.join("router.conf");
-        let text = format!(
-            "udp {{\n    port {port};\n    address 127.0.0.1;\n}}\n\
-             default_action accept;\nchain default {{\n    accept;\n}}\n"
-        );
-        std::fs::write(&config, text).map_err(|e| format!("{}: {e}", config.display()))?;
+        let mut command = if mode != Mode::Router {
+            let me = std::env::current_exe().map_err(|e| format!("own path: {e}"))?;
+            let mut c = Command::new(me);
+            c.arg(RELAY_ARG).arg(port.to_string());
+            if mode == Mode::ReceiveOnly {
+                c.arg(RECEIVE_ONLY_ARG);
+            }
+            c
+        } else {
+            let config = dir.join("router.conf");
+            let text = format!(
+                "udp {{\n    port {port};\n    address 127.0.0.1;\n}}\n\
+                 default_action accept;\nchain default {{\n    accept;\n}}\n"
+            );
+            std::fs::write(&config, text).map_err(|e| format!("{}: {e}", config.display()))?;
+            let mut c = Command::new(exe);
+            c.arg("--config").arg(&config);
+            c
+        };
         let log = std::fs::File::create(dir.join("router.log")).map_err(|e| e.to_string())?;
-        let child = Command::new(exe)
-            .arg("--config")
-            .arg(&config)
+        let child = command
             .stdin(Stdio::null())
             .stdout(log.try_clone().map_err(|e| e.to_string())?)
             .stderr(log)
             .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
-        Ok(Router {
+            .map_err(|e| format!("cannot start the forwarder: {e}"))?;
+        Ok(Forwarder {
             child,
             addr: SocketAddrV4::new(Ipv4Addr::LOCALHOST, port),
             dir,
@@ -568,9 +602,17 @@ impl Router {
         })
     }
 
-    /// CPU time (user + system) the router has used so far.
+    /// CPU time the forwarder has used so far, to the nanosecond: the scheduler's
+    /// run time of each of its threads (`/proc/<pid>/task/*/schedstat`), where
+    /// `/proc/<pid>/stat` counts in 10 ms ticks.
     fn cpu(&self) -> Option<Duration> {
-        cpu_time(self.child.id())
+        let tasks = std::fs::read_dir(format!("/proc/{}/task", self.child.id())).ok()?;
+        let mut ns = 0u64;
+        for task in tasks {
+            let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+            ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
+        }
+        Some(Duration::from_nanos(ns))
     }
 
     /// Peak resident set size (`VmHWM`), KiB.
@@ -581,7 +623,7 @@ impl Router {
     }
 }
 
-impl Drop for Router {
+impl Drop for Forwarder {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
@@ -606,13 +648,68 @@ fn free_port() -> io::Result<u16> {
     Ok(UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
+/// Argument with which this benchmark runs as the minimal relay (`RELAY_ARG PORT`), or
+/// as a process that only receives (`RELAY_ARG PORT RECEIVE_ONLY_ARG`).
+const RELAY_ARG: &str = "--relay-serve";
+const RECEIVE_ONLY_ARG: &str = "--receive-only";
+/// Most peers the minimal relay remembers.
+const RELAY_PEERS: usize = 16;
+
+/// The minimal relay: the least work any UDP router must do, as a yardstick for
+/// `mavtables` in the same run. Blocks in `recvmmsg` (no `epoll`), learns every sender
+/// as a peer and sends each datagram, unparsed, to every other peer with `sendmmsg`,
+/// one datagram each (no GSO); with `receive_only` it sends nothing, which is the least
+/// CPU any router spends per received frame. Runs until killed.
+fn relay_serve(port: u16, receive_only: bool) -> io::Result<()> {
+    let sock = UdpSocket::bind(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port))?;
+    let _ = sys::set_recv_buffer(sock.as_raw_fd(), 4 << 20);
+    let mut bufs = Box::new([[0u8; DGRAM_MAX]; sys::BATCH]);
+    let mut lens = [0usize; sys::BATCH];
+    let mut froms = [SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0); sys::BATCH];
+    let mut peers: Vec<SocketAddrV4> = Vec::new();
+    loop {
+        let n = match sys::recv_batch(sock.as_raw_fd(), &mut bufs, &mut lens, &mut froms) {
+            Ok(n) => n,
+            Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if receive_only {
+            continue;
+        }
+        for from in &froms[..n] {
+            if !peers.contains(from) && peers.len() < RELAY_PEERS {
+                peers.push(*from);
+            }
+        }
+        let msgs: Vec<(&[u8], SocketAddrV4)> = bufs
+            .iter()
+            .zip(&lens[..n])
+            .zip(&froms[..n])
+            .flat_map(|((buf, &len), from)| {
+                peers
+                    .iter()
+                    .filter(move |p| *p != from)
+                    .map(move |&p| (&buf[..len], p))
+            })
+            .collect();
+        send_all(&sock, &msgs, SendMode::Batched);
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Trials
 
 /// Where the generator sends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Mode {
+    /// Straight to the sinks: one hop, the machine's ceiling.
     Direct,
+    /// Through the minimal relay ([`relay_serve`]): the least any router adds.
+    Relay,
+    /// To a process that only receives ([`relay_serve`] without sending), with no
+    /// sinks: for the least CPU per received frame.
+    ReceiveOnly,
+    /// Through `mavtables`.
     Router,
 }
 
@@ -621,7 +718,7 @@ struct Setup {
     gen_sock: UdpSocket,
     sinks: Vec<UdpSocket>,
     dests: Vec<SocketAddrV4>,
-    router: Option<Router>,
+    router: Option<Forwarder>,
     next_seq: u32,
     base: Instant,
 }
@@ -723,10 +820,15 @@ impl Setup {
                     other => Err(format!("sink address: {other:?}")),
                 })
                 .collect::<Result<Vec<_>, _>>()?,
-            Mode::Router => {
+            Mode::Relay | Mode::Router | Mode::ReceiveOnly => {
                 let exe = exe.ok_or("no router binary")?;
-                let mut r = Router::start(exe)?;
-                r.handshake(&gen_sock, &sinks)?;
+                let mut r = Forwarder::start(exe, mode)?;
+                if mode == Mode::ReceiveOnly {
+                    // Nothing to wait for but the socket.
+                    thread::sleep(Duration::from_millis(100));
+                } else {
+                    r.handshake(&gen_sock, &sinks)?;
+                }
                 let addr = r.addr;
                 router = Some(r);
                 vec![addr]
@@ -755,7 +857,7 @@ impl Setup {
         let stop = AtomicBool::new(false);
         let progress: Vec<AtomicU64> = self.sinks.iter().map(|_| AtomicU64::new(0)).collect();
         let announce = self.router.as_ref().map(|r| r.addr);
-        let router_before = self.router.as_ref().and_then(Router::cpu);
+        let router_before = self.router.as_ref().and_then(Forwarder::cpu);
         let self_before = cpu_time(std::process::id());
         let (generator, sinks) = thread::scope(|s| {
             let handles: Vec<_> = self
@@ -812,7 +914,7 @@ impl Setup {
             rate,
             generator,
             sinks,
-            router_cpu: diff(router_before, self.router.as_ref().and_then(Router::cpu)),
+            router_cpu: diff(router_before, self.router.as_ref().and_then(Forwarder::cpu)),
             harness_cpu: diff(self_before, cpu_time(std::process::id())),
         }
     }
@@ -907,7 +1009,7 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
         }
         row.zero_loss = Some(rate);
     }
-    if let Some(why) = setup.router.as_mut().and_then(Router::exited) {
+    if let Some(why) = setup.router.as_mut().and_then(Forwarder::exited) {
         row.stop = format!("{} — then {why}", row.stop);
         return row;
     }
@@ -940,7 +1042,7 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
         row.rss_kib = router.peak_rss_kib();
         let rate = 10.0 * row.zero_loss.unwrap_or(LADDER[0]);
         let t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
-        let rss = setup.router.as_ref().and_then(Router::peak_rss_kib);
+        let rss = setup.router.as_ref().and_then(Forwarder::peak_rss_kib);
         row.overload = Some(format!(
             "{}/s sent ({} target): {:.1}% lost, peak RSS {} KiB",
             fmt_rate(t.achieved()),
@@ -948,7 +1050,7 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
             t.loss_percent(),
             rss.map_or("?".into(), |k| k.to_string())
         ));
-        if let Some(why) = setup.router.as_mut().and_then(Router::exited) {
+        if let Some(why) = setup.router.as_mut().and_then(Forwarder::exited) {
             row.overload = Some(format!("{} — then {why}", row.overload.unwrap()));
         }
     }
@@ -959,7 +1061,7 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
 /// interleaved (1 receiver), 5 rounds each: for working on the latency path.
 fn latency_only(exe: &Path, plan: &Plan) {
     let mut setups = Vec::new();
-    for mode in [Mode::Direct, Mode::Router] {
+    for mode in [Mode::Direct, Mode::Relay, Mode::Router] {
         match Setup::new(mode, 1, Some(exe)) {
             Ok(s) => setups.push((mode, s)),
             Err(why) => println!("  {mode:?}: unavailable: {why}"),
@@ -975,8 +1077,11 @@ fn latency_only(exe: &Path, plan: &Plan) {
                 Reading::Eager,
             );
             let l = t.latency(&[0.5, 0.99, 0.999]);
+            let cpu = per_frame_us(t.router_cpu, t.generator.sent).map_or(String::new(), |us| {
+                format!(", forwarder CPU/frame {us:.2} µs")
+            });
             println!(
-                "  {:<7} p50 {:>5} p99 {:>6} p99.9 {:>6} ns, lost {}",
+                "  {:<7} p50 {:>5} p99 {:>6} p99.9 {:>6} ns, lost {}{cpu}",
                 format!("{mode:?}").to_lowercase(),
                 l[0],
                 l[1],
@@ -997,41 +1102,59 @@ fn latency_only(exe: &Path, plan: &Plan) {
     }
 }
 
-/// `--cpu`: only the router's CPU per frame at 50k frames/s, 1 and 3 receivers, 7
-/// rounds of 1 s each (routers of other builds: `MAVTABLES_BENCH_ROUTER`).
+/// `--cpu`: only the CPU per frame of the minimal relay and of the router at 50k
+/// frames/s, 1 and 3 receivers, 7 interleaved rounds of 1 s each, then working off a
+/// backlog (routers of other builds: `MAVTABLES_BENCH_ROUTER`).
 fn cpu_only(exe: &Path) {
     for receivers in [1, 3] {
-        let mut setup = match Setup::new(Mode::Router, receivers, Some(exe)) {
-            Ok(s) => s,
-            Err(why) => {
-                println!("  router x{receivers}: unavailable: {why}");
-                continue;
-            }
+        let mut setups = Vec::new();
+        let modes: &[Mode] = if receivers == 1 {
+            &[Mode::ReceiveOnly, Mode::Relay, Mode::Router]
+        } else {
+            &[Mode::Relay, Mode::Router]
         };
-        let mut v = Vec::new();
-        for _ in 0..7 {
-            let t = setup.trial(
-                Some(CPU_RATE),
-                Duration::from_secs(1),
-                SendMode::Batched,
-                Reading::Lazy,
-            );
-            if let Some(us) = per_frame_us(t.router_cpu, t.generator.sent) {
-                v.push(us);
+        for &mode in modes {
+            let receivers = if mode == Mode::ReceiveOnly {
+                0
+            } else {
+                receivers
+            };
+            match Setup::new(mode, receivers, Some(exe)) {
+                Ok(s) => setups.push((mode, s, Vec::new())),
+                Err(why) => println!("  {mode:?} x{receivers}: unavailable: {why}"),
             }
         }
-        let shown: Vec<String> = v.iter().map(|us| format!("{us:.2}")).collect();
-        println!(
-            "router x{receivers}: CPU/frame @{}: median {:.2} µs ({})",
-            fmt_rate(CPU_RATE),
-            median(v),
-            shown.join(", ")
-        );
-        match backlog_cpu(&mut setup, 30, 4000) {
-            Ok((frames, us)) => println!(
-                "router x{receivers}: CPU/frame working off a backlog (full batches): {us:.2} µs over {frames} frames"
-            ),
-            Err(why) => println!("router x{receivers}: backlog run unavailable: {why}"),
+        for _ in 0..7 {
+            for (_, setup, v) in &mut setups {
+                let t = setup.trial(
+                    Some(CPU_RATE),
+                    Duration::from_secs(1),
+                    SendMode::Batched,
+                    Reading::Lazy,
+                );
+                if let Some(us) = per_frame_us(t.router_cpu, t.generator.sent) {
+                    v.push(us);
+                }
+            }
+        }
+        for (mode, setup, v) in &mut setups {
+            let name = match mode {
+                Mode::ReceiveOnly => "receive-only".to_string(),
+                _ => format!("{mode:?} x{receivers}").to_lowercase(),
+            };
+            let shown: Vec<String> = v.iter().map(|us| format!("{us:.2}")).collect();
+            println!(
+                "{name}: CPU/frame @{}: median {:.2} µs ({})",
+                fmt_rate(CPU_RATE),
+                median(std::mem::take(v)),
+                shown.join(", ")
+            );
+            match backlog_cpu(setup, 30, 4000) {
+                Ok((frames, us)) => println!(
+                    "{name}: CPU/frame working off a backlog (full batches): {us:.2} µs over {frames} frames"
+                ),
+                Err(why) => println!("{name}: backlog run unavailable: {why}"),
+            }
         }
     }
 }
@@ -1039,8 +1162,8 @@ fn cpu_only(exe: &Path) {
 /// The router's CPU per frame when it works through a backlog, so that every receive
 /// and send is a full batch: `rounds` times, the router is stopped (SIGSTOP), `per_round`
 /// frames are queued in its socket, and it is let go (SIGCONT) for 100 ms, after which
-/// every sink must have them all. Returns (frames forwarded, µs of router CPU per frame) over all rounds
-/// (the CPU clock counts in 10 ms ticks, hence many rounds).
+/// every sink must have them all. Returns (frames forwarded, µs of router CPU per frame)
+/// over all rounds.
 fn backlog_cpu(setup: &mut Setup, rounds: usize, per_round: usize) -> Result<(u64, f64), String> {
     let router = setup.router.as_ref().ok_or("no router")?;
     let (pid, to) = (router.child.id(), router.addr);
@@ -1173,6 +1296,20 @@ fn smoke() {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
+    if let [_, flag, port, rest @ ..] = &args[..]
+        && flag == RELAY_ARG
+    {
+        let receive_only = rest.iter().any(|a| a == RECEIVE_ONLY_ARG);
+        let result = port
+            .parse()
+            .map_err(|e| format!("port {port}: {e}"))
+            .and_then(|p| relay_serve(p, receive_only).map_err(|e| e.to_string()));
+        if let Err(e) = result {
+            eprintln!("relay: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     if !args.iter().any(|a| a == "--bench") {
         smoke();
         return;
@@ -1218,7 +1355,7 @@ fn main() {
         return;
     }
     let mut rows = Vec::new();
-    for mode in [Mode::Direct, Mode::Router] {
+    for mode in [Mode::Direct, Mode::Relay, Mode::Router] {
         for receivers in [1, 3] {
             let row = measure(mode, receivers, Some(&exe), &plan);
             if let Some(why) = &row.unavailable {
