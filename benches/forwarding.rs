@@ -940,14 +940,14 @@ struct Row {
     zero_loss: Option<f64>,
     /// Why the ladder stopped: loss (rate, loss %), the generator, or the end.
     stop: String,
-    /// Router (router mode) and harness CPU per frame sent, µs.
+    /// Forwarder (relay and router modes) and harness CPU per frame sent, µs.
     router_cpu_us: Option<f64>,
     harness_cpu_us: Option<f64>,
     /// Median p50, p99, p99.9 latency, µs.
     latency_us: Option<[f64; 3]>,
     /// Frames lost during the latency rounds.
     latency_loss: u64,
-    /// Router's peak RSS after the normal runs, KiB.
+    /// Forwarder's peak RSS after the normal runs, KiB.
     rss_kib: Option<u64>,
     /// What 10× overload did (rate reached, loss, peak RSS).
     overload: Option<String>,
@@ -983,8 +983,9 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
         if !t.zero_loss() && t.on_rate() {
             t = setup.trial(Some(rate), plan.step, SendMode::Batched, Reading::Lazy);
         }
-        let cpu = per_frame_us(t.router_cpu, t.generator.sent)
-            .map_or(String::new(), |us| format!(", router CPU/frame {us:.2} µs"));
+        let cpu = per_frame_us(t.router_cpu, t.generator.sent).map_or(String::new(), |us| {
+            format!(", forwarder CPU/frame {us:.2} µs")
+        });
         println!(
             "  {label:<10} {:>6}/s: sent {:>8} at {:>6}/s, lost {:>7} ({:.3}%), send errors {}, sink errors {}{cpu}",
             fmt_rate(rate),
@@ -1368,7 +1369,7 @@ fn main() {
     let mut out = io::stdout().lock();
     let _ = writeln!(
         out,
-        "\n| mode | receivers | highest zero-loss rate (then) | router CPU/frame @{} | harness CPU/frame | latency p50 / p99 / p99.9 @{} | router peak RSS | 10x overload |",
+        "\n| mode | receivers | highest zero-loss rate (then) | forwarder CPU/frame @{} | harness CPU/frame | latency p50 / p99 / p99.9 @{} | forwarder peak RSS | 10x overload |",
         fmt_rate(CPU_RATE),
         fmt_rate(LATENCY_RATE)
     );
