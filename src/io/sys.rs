@@ -42,21 +42,50 @@ fn from_sockaddr(sa: &libc::sockaddr_in) -> Option<SocketAddrV4> {
     })
 }
 
-/// Receive buffers for [`recv_batch`]: `MAX_BATCH` slots of `slot_len` bytes.
+/// The C structures a `recvmmsg` call reads and writes, kept from call to call.
+struct RecvHeaders {
+    names: [libc::sockaddr_in; MAX_BATCH],
+    iovs: [libc::iovec; MAX_BATCH],
+    msgs: [libc::mmsghdr; MAX_BATCH],
+}
+
+/// Receive buffers for [`recv_batch`]: `MAX_BATCH` slots of `slot_len` bytes, and the
+/// headers that describe them to the kernel. The headers are set up once: building all
+/// 64 for every call cost a wake-up that reads one datagram 6 KiB of writes.
 pub struct RecvBatch {
     data: Vec<u8>,
     slot_len: usize,
+    headers: Box<RecvHeaders>,
     lens: [usize; MAX_BATCH],
     addrs: [Option<SocketAddrV4>; MAX_BATCH],
     count: usize,
 }
 
+const SOCKADDR_IN_LEN: libc::socklen_t = std::mem::size_of::<libc::sockaddr_in>() as _;
+
 impl RecvBatch {
     /// Buffers for datagrams of up to `slot_len` bytes (longer ones are truncated).
     pub fn new(slot_len: usize) -> Self {
+        let mut data = vec![0u8; slot_len * MAX_BATCH];
+        // SAFETY: arrays of plain-old-data C structs; all-zero is a valid value.
+        let mut headers: Box<RecvHeaders> =
+            Box::new(unsafe { MaybeUninit::zeroed().assume_init() });
+        let h = &mut *headers;
+        let base = data.as_mut_ptr();
+        for i in 0..MAX_BATCH {
+            // Heap addresses: they stay valid when the `RecvBatch` moves, and `data` is
+            // never resized.
+            h.iovs[i].iov_base = base.wrapping_add(i * slot_len).cast();
+            h.iovs[i].iov_len = slot_len;
+            h.msgs[i].msg_hdr.msg_name = (&mut h.names[i] as *mut libc::sockaddr_in).cast();
+            h.msgs[i].msg_hdr.msg_namelen = SOCKADDR_IN_LEN;
+            h.msgs[i].msg_hdr.msg_iov = &mut h.iovs[i];
+            h.msgs[i].msg_hdr.msg_iovlen = 1;
+        }
         RecvBatch {
-            data: vec![0; slot_len * MAX_BATCH],
+            data,
             slot_len,
+            headers,
             lens: [0; MAX_BATCH],
             addrs: [None; MAX_BATCH],
             count: 0,
@@ -76,27 +105,18 @@ impl RecvBatch {
 /// (`WouldBlock` when none were waiting).
 pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
     let fd: RawFd = fd.as_raw_fd();
-    let slot = batch.slot_len;
-    // SAFETY (all three): arrays of plain-old-data C structs; all-zero is valid.
-    let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let base = batch.data.as_mut_ptr();
-    for i in 0..MAX_BATCH {
-        // SAFETY: `i * slot + slot <= data.len()` by construction of `RecvBatch`.
-        iovs[i].iov_base = unsafe { base.add(i * slot) }.cast();
-        iovs[i].iov_len = slot;
-        msgs[i].msg_hdr.msg_name = (&mut names[i] as *mut libc::sockaddr_in).cast();
-        msgs[i].msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
-        msgs[i].msg_hdr.msg_iov = &mut iovs[i];
-        msgs[i].msg_hdr.msg_iovlen = 1;
+    let h = &mut *batch.headers;
+    // The kernel wrote the address lengths of the datagrams of the last call.
+    for m in &mut h.msgs[..batch.count] {
+        m.msg_hdr.msg_namelen = SOCKADDR_IN_LEN;
     }
-    // SAFETY: every pointer in `msgs` refers to a local array or to `batch.data`, all of
-    // which outlive the call; the lengths match the buffers.
+    // SAFETY: every header points at its own entry of `names` and `iovs` (in the same
+    // box) and at its own `slot_len` bytes of `data`, all owned by `batch`, which is
+    // borrowed exclusively for the call; `data` has `MAX_BATCH * slot_len` bytes.
     let n = unsafe {
         libc::recvmmsg(
             fd,
-            msgs.as_mut_ptr(),
+            h.msgs.as_mut_ptr(),
             MAX_BATCH as libc::c_uint,
             libc::MSG_DONTWAIT,
             std::ptr::null_mut(),
@@ -108,8 +128,8 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
     }
     let n = n as usize;
     for i in 0..n {
-        batch.lens[i] = (msgs[i].msg_len as usize).min(slot);
-        batch.addrs[i] = from_sockaddr(&names[i]);
+        batch.lens[i] = (h.msgs[i].msg_len as usize).min(batch.slot_len);
+        batch.addrs[i] = from_sockaddr(&h.names[i]);
     }
     batch.count = n;
     Ok(n)
@@ -190,64 +210,55 @@ pub fn gso_supported(fd: &impl AsRawFd) -> bool {
 /// again without GSO.
 pub fn send_batch<'a>(
     fd: &impl AsRawFd,
+    batch: &mut SendBatch,
     datagrams: impl IntoIterator<Item = (SocketAddrV4, &'a [u8])>,
     gso: bool,
 ) -> io::Result<usize> {
-    // SAFETY (all four): arrays of plain-old-data C structs; all-zero is valid.
-    let mut names: [libc::sockaddr_in; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let mut iovs: [libc::iovec; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let mut msgs: [libc::mmsghdr; MAX_BATCH] = unsafe { MaybeUninit::zeroed().assume_init() };
-    let mut cmsgs: [CmsgBuf; MAX_BATCH] = [[0; 4]; MAX_BATCH];
-    let mut to = [None::<SocketAddrV4>; MAX_BATCH];
+    let h = &mut *batch.0;
     let mut n = 0;
     for (i, (addr, bytes)) in datagrams.into_iter().take(MAX_BATCH).enumerate() {
         n = i + 1;
-        to[i] = Some(addr);
-        names[i] = to_sockaddr(addr);
+        h.names[i] = to_sockaddr(addr);
         // The kernel only reads through this pointer (sendmmsg).
-        iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
-        iovs[i].iov_len = bytes.len();
+        h.iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
+        h.iovs[i].iov_len = bytes.len();
     }
     if n == 0 {
         return Ok(0);
     }
-    // Group the datagrams into messages: `runs[m]` datagrams from `firsts[m]` on.
-    let mut firsts = [0usize; MAX_BATCH];
-    let mut runs = [0usize; MAX_BATCH];
+    let same_remote = |a: &libc::sockaddr_in, b: &libc::sockaddr_in| {
+        a.sin_addr.s_addr == b.sin_addr.s_addr && a.sin_port == b.sin_port
+    };
+    // Group the datagrams into messages, each a run from datagram `i` to `end`.
     let mut messages = 0;
     let mut i = 0;
     while i < n {
-        let size = iovs[i].iov_len;
+        let size = h.iovs[i].iov_len;
         let mut end = i + 1;
         let mut total = size;
         while gso
             && end < n
-            && to[end] == to[i]
-            && iovs[end].iov_len <= size
-            && iovs[end].iov_len > 0
+            && same_remote(&h.names[end], &h.names[i])
+            && h.iovs[end].iov_len <= size
+            && h.iovs[end].iov_len > 0
             && end - i < GSO_MAX_SEGMENTS
-            && total + iovs[end].iov_len <= GSO_MAX_BYTES
+            && total + h.iovs[end].iov_len <= GSO_MAX_BYTES
         {
-            total += iovs[end].iov_len;
+            total += h.iovs[end].iov_len;
             end += 1;
-            if iovs[end - 1].iov_len < size {
+            if h.iovs[end - 1].iov_len < size {
                 break; // a shorter datagram can only end a run
             }
         }
-        firsts[messages] = i;
-        runs[messages] = end - i;
-        messages += 1;
-        i = end;
-    }
-    for m in 0..messages {
-        let (first, run) = (firsts[m], runs[m]);
-        let hdr = &mut msgs[m].msg_hdr;
-        hdr.msg_name = (&mut names[first] as *mut libc::sockaddr_in).cast();
-        hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_in>() as libc::socklen_t;
-        hdr.msg_iov = &mut iovs[first];
+        let run = end - i;
+        let hdr = &mut h.msgs[messages].msg_hdr;
+        hdr.msg_name = (&mut h.names[i] as *mut libc::sockaddr_in).cast();
+        hdr.msg_namelen = SOCKADDR_IN_LEN;
+        hdr.msg_iov = &mut h.iovs[i];
         hdr.msg_iovlen = run as _;
+        hdr.msg_flags = 0;
         if run > 1 {
-            hdr.msg_control = cmsgs[m].as_mut_ptr().cast();
+            hdr.msg_control = h.cmsgs[messages].as_mut_ptr().cast();
             // SAFETY: CMSG_SPACE only computes a size.
             hdr.msg_controllen = unsafe { libc::CMSG_SPACE(2) } as _;
             // SAFETY: the control buffer set just above is 32 bytes, aligned for
@@ -258,25 +269,36 @@ pub fn send_batch<'a>(
                 (*c).cmsg_level = libc::SOL_UDP;
                 (*c).cmsg_type = UDP_SEGMENT;
                 (*c).cmsg_len = libc::CMSG_LEN(2) as _;
-                let size = iovs[first].iov_len as u16;
-                std::ptr::write_unaligned(libc::CMSG_DATA(c).cast::<u16>(), size);
+                std::ptr::write_unaligned(libc::CMSG_DATA(c).cast::<u16>(), size as u16);
             }
+        } else {
+            hdr.msg_control = std::ptr::null_mut();
+            hdr.msg_controllen = 0;
         }
+        messages += 1;
+        i = end;
     }
-    // SAFETY: every pointer refers to a local array or a borrowed slice that outlives
-    // the call; each message's iovecs are `run` consecutive entries of `iovs`.
+    // SAFETY: the first `messages` headers were all written above; they point at entries
+    // of `names`, `iovs` and `cmsgs` in the same box and, through `iovs`, at the borrowed
+    // datagrams, all alive for the call; each message's iovecs are `msg_iovlen`
+    // consecutive entries of the first `n` of `iovs`.
     let sent = unsafe {
         libc::sendmmsg(
             fd.as_raw_fd(),
-            msgs.as_mut_ptr(),
+            h.msgs.as_mut_ptr(),
             messages as libc::c_uint,
             libc::MSG_DONTWAIT,
         )
     };
+    // `msg_iovlen` is a `size_t` with glibc and an `int` with musl.
+    #[allow(clippy::unnecessary_cast)]
+    let datagrams_of = |m: &libc::mmsghdr| m.msg_hdr.msg_iovlen as usize;
     if sent < 0 {
         let e = io::Error::last_os_error();
         // sendmmsg fails only when its first message does.
-        if runs[0] > 1 && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL)) {
+        if datagrams_of(&h.msgs[0]) > 1
+            && matches!(e.raw_os_error(), Some(libc::EIO | libc::EINVAL))
+        {
             return Err(io::Error::new(
                 io::ErrorKind::Unsupported,
                 format!("UDP segmentation offload refused: {e}"),
@@ -284,7 +306,33 @@ pub fn send_batch<'a>(
         }
         return Err(e);
     }
-    Ok(runs[..sent as usize].iter().sum())
+    Ok(h.msgs[..sent as usize].iter().map(datagrams_of).sum())
+}
+
+/// The C structures a `sendmmsg` call reads, kept from call to call like those of
+/// [`RecvBatch`]; a call writes only the entries it uses.
+struct SendHeaders {
+    names: [libc::sockaddr_in; MAX_BATCH],
+    iovs: [libc::iovec; MAX_BATCH],
+    msgs: [libc::mmsghdr; MAX_BATCH],
+    cmsgs: [CmsgBuf; MAX_BATCH],
+}
+
+/// Scratch space of [`send_batch`]: one per socket that sends.
+pub struct SendBatch(Box<SendHeaders>);
+
+impl SendBatch {
+    /// Empty headers.
+    pub fn new() -> Self {
+        // SAFETY: arrays of plain-old-data C structs and integers; all-zero is valid.
+        SendBatch(Box::new(unsafe { MaybeUninit::zeroed().assume_init() }))
+    }
+}
+
+impl Default for SendBatch {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 /// Local calendar time of a UNIX time in seconds: (year, month 1–12, day, hour, minute,
@@ -404,7 +452,7 @@ mod tests {
         let payloads: Vec<Vec<u8>> = (0..10u8).map(|i| vec![i; 1 + i as usize]).collect();
         let dgs: Vec<(SocketAddrV4, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
         assert_eq!(
-            send_batch(&tx, dgs.iter().copied(), false).expect("send"),
+            send_batch(&tx, &mut SendBatch::new(), dgs.iter().copied(), false).expect("send"),
             10
         );
         let mut batch = RecvBatch::new(2048);
@@ -496,7 +544,7 @@ mod tests {
             .map(|(&(r, _), p)| (to[r], p.as_slice()))
             .collect();
         let gso = gso_supported(&tx);
-        let sent = send_batch(&tx, dgs.iter().copied(), gso).expect("send");
+        let sent = send_batch(&tx, &mut SendBatch::new(), dgs.iter().copied(), gso).expect("send");
         assert_eq!(sent, plan.len(), "gso = {gso}");
         for (r, rx) in rx.iter().enumerate() {
             let want: Vec<Vec<u8>> = plan
@@ -521,7 +569,13 @@ mod tests {
                 .collect();
             let dgs: Vec<(SocketAddrV4, &[u8])> =
                 payloads.iter().map(|p| (to, p.as_slice())).collect();
-            let sent = send_batch(&tx, dgs.iter().copied(), gso_supported(&tx)).expect("send");
+            let sent = send_batch(
+                &tx,
+                &mut SendBatch::new(),
+                dgs.iter().copied(),
+                gso_supported(&tx),
+            )
+            .expect("send");
             assert_eq!(sent, count);
             assert_eq!(drain(&rx, count), payloads, "{count} x {len}");
         }
@@ -555,7 +609,7 @@ mod tests {
                 plan.iter().zip(&payloads).map(|(&(r, _, _), p)| (to[r], p.as_slice())).collect();
             let mut sent = 0;
             while sent < dgs.len() {
-                sent += send_batch(&tx, dgs[sent..].iter().copied(), gso_supported(&tx)).expect("send");
+                sent += send_batch(&tx, &mut SendBatch::new(), dgs[sent..].iter().copied(), gso_supported(&tx)).expect("send");
             }
             for (r, rx) in rx.iter().enumerate() {
                 let want: Vec<Vec<u8>> = plan

@@ -12,7 +12,7 @@ use socket2::{Domain, Protocol, Socket, Type};
 use super::counters::{LinkCounters, LinkReport};
 use super::frames::{Source, ToRouter, UnknownIds};
 use super::log;
-use super::sys::{self, MAX_BATCH, RecvBatch};
+use super::sys::{self, MAX_BATCH, RecvBatch, SendBatch};
 use crate::config::UdpInterface;
 use crate::routing::pacer::DEFAULT_BURST;
 use crate::routing::{LinkId, Output, Pace, Pacer, Packet, Router, Timestamp};
@@ -69,6 +69,7 @@ pub struct UdpDriver {
     pacer: Pacer,
     in_flight: VecDeque<(SocketAddrV4, Packet)>,
     batch: RecvBatch,
+    send_scratch: SendBatch,
     /// When the pacer next allows a datagram, if it is holding one back.
     pub pace_deadline: Option<Timestamp>,
     /// Receive or send errors other than "would block".
@@ -164,6 +165,7 @@ impl UdpDriver {
             pacer: pacer_for(rate),
             in_flight: VecDeque::new(),
             batch: RecvBatch::new(DATAGRAM_MAX),
+            send_scratch: SendBatch::new(),
             pace_deadline: None,
             io_errors: 0,
             blocked: false,
@@ -378,7 +380,7 @@ impl UdpDriver {
             }
             let wanted = self.in_flight.len();
             let batch = self.in_flight.iter().map(|(a, p)| (*a, &p[..]));
-            match sys::send_batch(&self.socket, batch, self.gso) {
+            match sys::send_batch(&self.socket, &mut self.send_scratch, batch, self.gso) {
                 Ok(sent) => {
                     for _ in 0..sent {
                         if let Some((address, packet)) = self.in_flight.pop_front() {
