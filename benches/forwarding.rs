@@ -4,7 +4,7 @@
 //! Run: `cargo bench --bench forwarding` (about 2–3 minutes), or
 //! `cargo bench --bench forwarding -- --quick` (or `MAVTABLES_BENCH_QUICK=1`) for a short
 //! run. `cargo test --all-targets` runs this file with no `--bench` argument: then it only
-//! does a ~2 s smoke test of direct mode and never starts the router.
+//! does a ~3 s smoke test of direct and relay mode and never starts the router.
 //!
 //! The generator sends MAVLink 2 SYSTEM_TIME frames (24 bytes) from system
 //! [`GEN_SYSTEM`]: `time_unix_usec` carries the send time in ns since a shared
@@ -1292,6 +1292,25 @@ fn smoke() {
     assert!(
         t.sinks[0].distinct > 0,
         "unpaced one-by-one run delivered nothing"
+    );
+    // The relay (the floor of the benchmark) forwards: it is this very binary.
+    let mut relay = Setup::new(Mode::Relay, 1, Some(Path::new("unused"))).expect("relay setup");
+    let t = relay.trial(
+        Some(10e3),
+        Duration::from_millis(500),
+        SendMode::Batched,
+        Reading::Lazy,
+    );
+    let got = t.sinks[0].distinct;
+    println!("relay smoke: sent {}, received {got}", t.generator.sent);
+    assert!(
+        got * 10 >= t.generator.sent * 9,
+        "relay delivered {got} of {}",
+        t.generator.sent
+    );
+    assert!(
+        relay.router.as_ref().and_then(Forwarder::cpu).is_some(),
+        "no CPU time for the relay"
     );
 }
 
