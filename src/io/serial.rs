@@ -86,6 +86,9 @@ fn open_port(config: &SerialInterface) -> io::Result<File> {
         .flow_control(flow)
         .open_native()
         .map_err(io::Error::other)?;
+    // Best effort: most USB-serial adapters and UARTs take it, a pty or a USB CDC device
+    // may not, and the port works either way.
+    let _ = sys::request_low_latency(&port);
     sys::nonblocking_file(port)
 }
 

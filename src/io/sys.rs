@@ -9,7 +9,8 @@
 //! - `localtime_r`: the local calendar time for log lines;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
-//! - turning a configured serial port into a non-blocking file for the event loop.
+//! - turning a configured serial port into a non-blocking file for the event loop, and
+//!   asking its driver for low latency (`TIOCSSERIAL` with `ASYNC_LOW_LATENCY`).
 //!
 //! Every function checks its inputs so that the pointers handed to the kernel always
 //! describe memory owned by the caller for the duration of the call.
@@ -436,6 +437,45 @@ pub fn nonblocking_file(port: serialport::TTYPort) -> io::Result<std::fs::File> 
     Ok(file)
 }
 
+/// `ASYNC_LOW_LATENCY` (linux/tty_flags.h): the serial driver hands received bytes on
+/// at once instead of collecting them first (USB-serial adapters of FTDI make this their
+/// 1 ms latency timer instead of 16 ms).
+const ASYNC_LOW_LATENCY: libc::c_int = 1 << 13;
+
+/// Byte offset of `flags` in the kernel's `struct serial_struct` (after the `int`s
+/// `type`, `line`, `port` and `irq`).
+const SERIAL_FLAGS_OFFSET: usize = 16;
+
+/// Room for the kernel's `struct serial_struct` (72 bytes on 64-bit Linux) with margin,
+/// aligned for its `int`s and pointers.
+#[repr(C, align(8))]
+struct SerialInfo([u8; 128]);
+
+/// Asks the serial driver of `port` for low latency (`ASYNC_LOW_LATENCY`, which any user
+/// may set), as mavlink-router does. Fails with `ENOTTY` or `EINVAL` where the device has
+/// no such setting (a pseudo-terminal, some USB CDC devices); the port works either way.
+pub fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
+    let mut info = SerialInfo([0; 128]);
+    let fd = port.as_raw_fd();
+    // SAFETY: TIOCGSERIAL writes one `struct serial_struct`, which fits in `info`.
+    if unsafe { libc::ioctl(fd, libc::TIOCGSERIAL, info.0.as_mut_ptr()) } < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    let at = SERIAL_FLAGS_OFFSET..SERIAL_FLAGS_OFFSET + 4;
+    let mut flags = [0u8; 4];
+    flags.copy_from_slice(&info.0[at.clone()]);
+    let flags = libc::c_int::from_ne_bytes(flags);
+    if flags & ASYNC_LOW_LATENCY != 0 {
+        return Ok(());
+    }
+    info.0[at].copy_from_slice(&(flags | ASYNC_LOW_LATENCY).to_ne_bytes());
+    // SAFETY: TIOCSSERIAL reads one `struct serial_struct` from `info`, as read above.
+    if unsafe { libc::ioctl(fd, libc::TIOCSSERIAL, info.0.as_ptr()) } < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -478,6 +518,38 @@ mod tests {
             recv_batch(&rx, &mut batch).err().map(|e| e.kind()),
             Some(io::ErrorKind::WouldBlock)
         );
+    }
+
+    #[test]
+    fn low_latency_is_refused_by_a_pty_without_harm() {
+        let (mut master, mut slave) = (0, 0);
+        // SAFETY: openpty writes two descriptors; the name, termios and size are optional.
+        let r = unsafe {
+            libc::openpty(
+                &mut master,
+                &mut slave,
+                std::ptr::null_mut(),
+                std::ptr::null(),
+                std::ptr::null(),
+            )
+        };
+        assert_eq!(r, 0, "openpty: {}", io::Error::last_os_error());
+        // SAFETY: both descriptors were just opened and are owned by nobody else.
+        let (master, slave) = unsafe {
+            use std::os::fd::FromRawFd;
+            (
+                std::fs::File::from_raw_fd(master),
+                std::fs::File::from_raw_fd(slave),
+            )
+        };
+        let e = request_low_latency(&slave).expect_err("a pty has no serial settings");
+        assert_eq!(e.raw_os_error(), Some(libc::ENOTTY));
+        // The terminal still carries bytes.
+        use std::io::{Read, Write};
+        (&slave).write_all(b"ok").expect("write");
+        let mut buf = [0u8; 2];
+        (&master).read_exact(&mut buf).expect("read");
+        assert_eq!(&buf, b"ok");
     }
 
     fn v4(s: &UdpSocket) -> SocketAddrV4 {
