@@ -51,8 +51,8 @@ struct RecvHeaders {
 }
 
 /// Receive buffers for [`recv_batch`]: `MAX_BATCH` slots of `slot_len` bytes, and the
-/// headers that describe them to the kernel. The headers are set up once: building all
-/// 64 for every call cost a wake-up that reads one datagram 6 KiB of writes.
+/// headers that describe them to the kernel. The headers are set up once, so that a call
+/// that reads one datagram does not first write 6 KiB of them.
 pub struct RecvBatch {
     data: Vec<u8>,
     slot_len: usize,
