@@ -1254,7 +1254,7 @@ fn print_row(out: &mut impl Write, mode: Mode, receivers: usize, row: &Row) -> i
     )
 }
 
-/// `cargo test`: a ~2 s check that the generator, sinks and accounting work.
+/// `cargo test`: a ~3 s check that the generator, sinks, accounting and relay work.
 fn smoke() {
     let mut setup = Setup::new(Mode::Direct, 1, None).expect("direct setup");
     let t = setup.trial(
