@@ -685,20 +685,51 @@ fn component_broadcast_fallback() {
     router.stop();
 }
 
+/// A router with one UDP interface and one serial port (a pty reached as `ttyS0` in the
+/// scratch folder) that drops heartbeats and accepts the rest, and a UDP peer it has
+/// already learned as 12.26.
+struct UdpAndSerial {
+    port: u16,
+    dev: String,
+    master: TTYPort,
+    slave: TTYPort,
+    router: Router,
+    rx: UdpPeer,
+}
+
+fn udp_and_serial(s: &Scratch) -> UdpAndSerial {
+    let port = free_udp_port();
+    let dev = s.path("ttyS0");
+    let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
+    let (master, slave) = pty_at(&dev);
+    let mut router = Router::start(s, &config, 1);
+    let rx = UdpPeer::new(port);
+    rx.send(&heartbeat(12, 26));
+    router.wait_for("new component 12.26 on 127.0.0.1:");
+    UdpAndSerial {
+        port,
+        dev,
+        master,
+        slave,
+        router,
+        rx,
+    }
+}
+
 // ----------------------------------------------------------------------------------------
 // 5. A serial device that vanishes and comes back while UDP traffic flows
 
 #[test]
 fn serial_device_vanishes_and_comes_back() {
     let s = Scratch::new("vanish");
-    let port = free_udp_port();
-    let dev = s.path("ttyS0");
-    let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
-    let (mut master, slave) = pty_at(&dev);
-    let mut router = Router::start(&s, &config, 1);
-    let rx = UdpPeer::new(port);
-    rx.send(&heartbeat(12, 26));
-    router.wait_for("new component 12.26 on 127.0.0.1:");
+    let UdpAndSerial {
+        port,
+        dev,
+        mut master,
+        slave,
+        mut router,
+        rx,
+    } = udp_and_serial(&s);
     master.write_all(&heartbeat(1, 1)).expect("pty write");
     router.wait_for(&format!("new component 1.1 on {dev}"));
     let tx = UdpPeer::new(port);
@@ -892,14 +923,14 @@ fn dirty_stream(sys: u8, comp: u8, seed: u64) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
 #[test]
 fn garbage_and_malformed_frames_lose_no_valid_frame() {
     let s = Scratch::new("garbage");
-    let port = free_udp_port();
-    let dev = s.path("ttyS0");
-    let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
-    let (mut master, _slave) = pty_at(&dev);
-    let mut router = Router::start(&s, &config, 1);
-    let rx = UdpPeer::new(port);
-    rx.send(&heartbeat(12, 26));
-    router.wait_for("new component 12.26 on 127.0.0.1:");
+    let UdpAndSerial {
+        port,
+        dev,
+        mut master,
+        slave: _slave,
+        router,
+        rx,
+    } = udp_and_serial(&s);
 
     let (udp_chunks, udp_valid) = dirty_stream(192, 168, 0x9E37_79B9_7F4A_7C15);
     let (serial_chunks, serial_valid) = dirty_stream(172, 128, 0xD1B5_4A32_D192_ED03);
@@ -1289,14 +1320,14 @@ fn sigusr1_prints_the_counters_and_routing_goes_on() {
 #[test]
 fn a_frame_behind_noise_is_not_held_up_on_a_quiet_line() {
     let s = Scratch::new("quiet-noise");
-    let port = free_udp_port();
-    let dev = s.path("ttyS0");
-    let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
-    let (mut master, _slave) = pty_at(&dev);
-    let mut router = Router::start(&s, &config, 1);
-    let rx = UdpPeer::new(port);
-    rx.send(&heartbeat(12, 26));
-    router.wait_for("new component 12.26 on 127.0.0.1:");
+    let UdpAndSerial {
+        port,
+        dev: _,
+        mut master,
+        slave: _slave,
+        router,
+        rx,
+    } = udp_and_serial(&s);
     // `FE FE FD FD FD 6E` starts a v1 FILE_TRANSFER_PROTOCOL candidate claiming 262
     // bytes; then one valid frame; then silence.
     let noisy = |valid: &[u8]| -> Vec<u8> {
