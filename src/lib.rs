@@ -13,6 +13,8 @@
 
 // Every public item says what it is for (CI turns this warning into an error).
 #![warn(missing_docs)]
+// The only exception is `io::sys`, the one module of system calls.
+#![deny(unsafe_code)]
 
 pub mod address;
 pub mod capture;

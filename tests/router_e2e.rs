@@ -1288,8 +1288,10 @@ fn a_flood_from_many_ports_cannot_grow_memory() {
         found = listener.recv(1, SECOND / 10).contains(&probe);
     }
     assert!(found, "the probe never arrived");
+    // The queues together hold at most 16 MiB by default (unbounded, they would take
+    // 1.2 GB here); the rest is the router itself, a few MiB.
     let peak = peak_rss_kib(pid);
-    assert!(peak < 10 * 1024, "peak RSS {peak} KiB");
+    assert!(peak < 24 * 1024, "peak RSS {peak} KiB");
     let counters = router.stop().stderr.join("\n");
     assert!(counters.contains("dropped"), "{counters}");
 }

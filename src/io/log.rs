@@ -97,3 +97,11 @@ mod tests {
         assert_eq!(&p[13..14], ":");
     }
 }
+
+/// Raw text on standard error (the counters report, unknown-id lines).
+pub fn stderr_text(text: &str) {
+    eprint!("{text}");
+}
+
+/// Waits at most `timeout` for buffered output to be written (before exit).
+pub fn drain(_timeout: std::time::Duration) {}

@@ -1,17 +1,20 @@
-//! I/O drivers: the event loop that owns UDP sockets and serial ports and drives the
-//! sans-IO routing core ([`crate::routing`]).
+//! I/O drivers: the event loop ([`run`]) and one driver per transport, which move bytes
+//! between the operating system and the sans-IO routing core ([`crate::routing::Engine`])
+//! and hold no routing policy.
 //!
-//! One thread, one `mio` poller: sockets and serial ports are non-blocking and
-//! edge-triggered; a `timerfd` wakes the loop when a `max_bitrate` pacer allows the next
-//! datagram; the poll timeout covers the once-a-second expiry tick and the reopening of
-//! lost serial devices. Nothing busy-waits: an idle router sleeps in `epoll_wait`.
+//! - `runtime`: the loop — wait, read, core, send, arm the one timer;
+//! - `driver`: what every transport driver does for the loop;
+//! - `udp`, `serial`: the drivers;
+//! - `log`: log lines and messages, written without ever blocking the loop;
+//! - `sys`: the only module with `unsafe` code — the system calls that the standard
+//!   library and `mio` do not offer.
 
-pub mod counters;
-pub mod frames;
-pub mod log;
-pub mod runtime;
-pub mod serial;
-pub mod sys;
-pub mod udp;
+mod driver;
+mod log;
+mod runtime;
+mod serial;
+#[allow(unsafe_code)]
+mod sys;
+mod udp;
 
 pub use runtime::run;

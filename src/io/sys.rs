@@ -13,7 +13,9 @@
 //!   asking its driver for low latency (`TIOCSSERIAL` with `ASYNC_LOW_LATENCY`).
 //!
 //! Every function checks its inputs so that the pointers handed to the kernel always
-//! describe memory owned by the caller for the duration of the call.
+//! describe memory owned by the caller for the duration of the call. Every `unsafe`
+//! block says why it is sound in a `SAFETY:` comment (clippy enforces it).
+#![warn(clippy::undocumented_unsafe_blocks)]
 
 use std::io;
 use std::mem::MaybeUninit;
@@ -376,9 +378,8 @@ impl TimerFd {
             return Err(io::Error::last_os_error());
         }
         // SAFETY: `fd` was just returned by the kernel and is owned by nobody else.
-        Ok(TimerFd {
-            fd: unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) },
-        })
+        let fd = unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) };
+        Ok(TimerFd { fd })
     }
 
     /// Fires once after `delay` (a zero delay fires at once); `None` disarms.
@@ -429,9 +430,13 @@ pub fn nonblocking_file(port: serialport::TTYPort) -> io::Result<std::fs::File> 
     let fd = std::os::fd::IntoRawFd::into_raw_fd(port);
     // SAFETY: `into_raw_fd` hands over sole ownership of an open descriptor.
     let file = unsafe { <std::fs::File as std::os::fd::FromRawFd>::from_raw_fd(fd) };
-    // SAFETY: fcntl on a descriptor we own, with integer arguments only.
+    // SAFETY: fcntl on a descriptor we own (`file`), with integer arguments only.
     let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
-    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) } < 0 {
+    if flags < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    // SAFETY: as above; F_SETFL takes the flags as an integer.
+    if unsafe { libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) } < 0 {
         return Err(io::Error::last_os_error());
     }
     Ok(file)
@@ -474,6 +479,29 @@ pub fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
         return Err(io::Error::last_os_error());
     }
     Ok(())
+}
+
+/// Turns UDP checksums off on a socket (`SO_NO_CHECK`). UDP segmentation offload
+/// needs checksum offload and refuses such sockets, so tests use it to see the GSO
+/// fallback at work.
+#[cfg(test)]
+pub fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
+    let one: libc::c_int = 1;
+    // SAFETY: passes a pointer to a live c_int and its size.
+    let r = unsafe {
+        libc::setsockopt(
+            fd.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_NO_CHECK,
+            (&one as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,10 @@
-//! One link: a serial port, or one remote `ip:port` behind a UDP interface.
+//! One link: a serial port, or one remote `ip:port` behind a UDP interface: its name,
+//! learned addresses, outgoing queue and counters.
 
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::counters::{LinkCounters, LinkReport};
 use super::pool::AddressPool;
 use super::queue::PacketQueue;
 use super::time::Timestamp;
@@ -29,6 +31,7 @@ pub struct Link {
     kind: LinkKind,
     pub(crate) pool: AddressPool,
     pub(crate) queue: PacketQueue,
+    pub(crate) counters: LinkCounters,
     /// Creation time, or the last time an address was learned.
     last_learned: Timestamp,
 }
@@ -48,6 +51,7 @@ impl Link {
             kind,
             pool: AddressPool::new(expiry),
             queue: PacketQueue::new(queue_capacity),
+            counters: LinkCounters::default(),
             last_learned: now,
         }
     }
@@ -79,6 +83,21 @@ impl Link {
     /// Packets waiting to be sent on this link.
     pub fn queue(&self) -> &PacketQueue {
         &self.queue
+    }
+
+    /// What went through this link.
+    pub fn counters(&self) -> &LinkCounters {
+        &self.counters
+    }
+
+    /// This link's line of the counters report.
+    pub fn report(&self) -> LinkReport<'_> {
+        LinkReport {
+            name: &self.name,
+            counters: self.counters,
+            queue_drops: self.queue.dropped(),
+            queue_high_water: self.queue.high_water(),
+        }
     }
 
     pub(crate) fn learn(&mut self, address: crate::address::Address, now: Timestamp) -> bool {

@@ -1,46 +1,45 @@
-//! The sans-IO routing core: address learning, per-link decisions, priority queues and
-//! bitrate pacing. It takes frames, link ids and the current time in, and gives queued
-//! packets and log events out. It never touches a socket, a thread or a clock.
+//! The sans-IO routing core: it never touches a socket, a thread or a clock. Bytes and
+//! the current time go in; what to send, when to wake up, and what to log come out.
 //!
-//! # How the event loop drives it
+//! The event loop talks to one type, [`Engine`] (see its module, [`engine`], for the
+//! calls and their order). Inside it:
+//! - [`router`]: the [`Router`] — every link, address learning, the per-link decision
+//!   ([`dispatch`]) through the shared filter, and the bounded priority queues
+//!   ([`queue`]); links are offered every packet in creation order (serial links first,
+//!   then UDP peers in the order their first frame arrived), as in the original, and
+//!   every accepting link queues the same shared bytes ([`Packet`]), never re-encoded;
+//! - [`interface`]: one configured interface — its parser, [`stale`] (when held-back
+//!   bytes stop waiting), [`pacer`] (`max_bitrate`), and for a datagram interface its
+//!   peers ([`remotes`]: peer ↔ link and the round robin), for a stream its
+//!   [`reconnect`] backoff;
+//! - [`intake`]: frames from a parser into the router (links created on a peer's first
+//!   valid frame, unknown ids reported once);
+//! - [`link`], [`pool`] (addresses with expiry), [`counters`], [`event`] (log events and
+//!   the original's exact texts), [`time`] (time as a value).
 //!
-//! ```text
-//! start:      router = Router::new(&config)              (one filter shared by all links)
-//!             for each serial interface, in file order:
-//!                 id = router.add_serial_link(device, &preload, now, &mut out)
-//!             pacer = Pacer::new(max_bitrate)            (one per UDP interface; 0 = none)
-//! datagram:   for each valid frame from remote ip:port:
-//!                 id = known id, or router.add_udp_link("a.b.c.d:port", now)
-//!                 router.receive(id, &frame, now, &mut out)
-//! serial rx:  router.receive(serial_id, &frame, now, &mut out)
-//! after each: print out.events (Display gives the text; add the timestamp prefix), and
-//!             want "writable" for every link in out.queued; then out.clear()
-//! writable:   serial: while let Some(p) = router.pop(id) { write p }
-//!             udp:    p = router.peek(id); match pacer.check(now, p.len()) {
-//!                         Pace::Now => { send router.pop(id); pacer.sent(now, len) }
-//!                         Pace::At(t) => wake up at t }
-//! every ~1 s: for id in router.tick(now) { forget the ip:port of link id }
-//! ```
-//!
-//! Links are offered every packet in creation order (serial links first, then UDP remotes
-//! in the order their first frame arrived), as in the original. Every accepting link
-//! queues the same shared bytes ([`Packet`]), never re-encoded.
-//!
-//! Parts: [`time`] (time as a value), [`pool`] (addresses with expiry), [`queue`] (bounded
-//! priority queue), [`dispatch`] (the per-link decision of spec §1.3), [`link`], [`event`]
-//! (log events and their exact texts), [`pacer`] (`max_bitrate`), [`router`].
+//! Tests drive the same calls with a simulated clock (`tests/routing/`).
 
+pub mod counters;
 pub mod dispatch;
+pub mod engine;
 pub mod event;
+pub mod intake;
+pub mod interface;
 pub mod link;
 pub mod pacer;
 pub mod pool;
 pub mod queue;
+pub mod reconnect;
+pub mod remotes;
 pub mod router;
+pub mod stale;
 pub mod time;
 
+pub use counters::{InterfaceReport, LinkCounters, LinkReport};
 pub use dispatch::Decision;
+pub use engine::{Engine, Notice, Transmit};
 pub use event::{Event, LinkRef, PacketSummary};
+pub use interface::InterfaceId;
 pub use link::{Link, LinkId, LinkKind};
 pub use pacer::{Pace, Pacer};
 pub use pool::AddressPool;

@@ -6,14 +6,20 @@ use std::sync::Arc;
 /// The exact bytes of one received frame, shared by every link that forwards it.
 pub type Packet = Arc<[u8]>;
 
-/// Default queue capacity per link: 4 MiB.
+/// Bytes one link's queue holds by default: 4 MiB.
 ///
-/// Large enough that the original's heaviest integration test ("large packets": 10 000
-/// 267-byte frames, about 2.7 MB, arriving far faster than a 262 144 bit/s link drains
-/// them, every one of which must arrive) loses nothing, so configurations that worked with
-/// the original's unbounded queues keep working; small enough that even hundreds of links
-/// stay within a few hundred MiB under any overload.
+/// Enough for 10,000 frames of 267 bytes (about 2.7 MB) arriving far faster than a
+/// 256 kbit/s link drains them — two senders of 5,000 ENCAPSULATED_DATA each, a load the
+/// original's unbounded queues delivered whole — so that configurations that worked with
+/// the original keep working. [`DEFAULT_TOTAL_CAPACITY`] bounds all links together.
 pub const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
+
+/// Bytes all queues together hold by default: 16 MiB, so that no number of links (a
+/// flood of spoofed UDP senders included) takes the router's memory beyond a few tens of
+/// MiB, while four links can each hold a full [`DEFAULT_CAPACITY`] at once. (Queues
+/// charge every packet to every queue holding it, though they share its bytes, so the
+/// memory they really use is at most this.)
+pub const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
 
 /// Bytes charged per packet on top of its length (shared-buffer header and queue slot),
 /// so that a flood of tiny packets is bounded too.
@@ -54,6 +60,8 @@ pub struct PacketQueue {
     len: usize,
     capacity: usize,
     dropped: u64,
+    /// Most bytes ever held at once.
+    high_water: usize,
 }
 
 impl PacketQueue {
@@ -65,6 +73,7 @@ impl PacketQueue {
             len: 0,
             capacity,
             dropped: 0,
+            high_water: 0,
         }
     }
 
@@ -94,6 +103,7 @@ impl PacketQueue {
         let bucket = self.buckets.entry(priority).or_default();
         bucket.bytes += cost;
         bucket.packets.push_back(packet);
+        self.high_water = self.high_water.max(self.bytes);
         PushOutcome::Queued { evicted }
     }
 
@@ -179,6 +189,11 @@ impl PacketQueue {
     /// Packets dropped because the queue was full, since creation.
     pub fn dropped(&self) -> u64 {
         self.dropped
+    }
+
+    /// The most bytes the queue has held at once, since creation.
+    pub fn high_water(&self) -> usize {
+        self.high_water
     }
 }
 

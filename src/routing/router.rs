@@ -5,11 +5,12 @@ use std::collections::BinaryHeap;
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::counters::LinkCounters;
 use super::dispatch::{Decision, decide};
 use super::event::{Event, LinkRef, PacketSummary};
 use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
-use super::queue::{DEFAULT_CAPACITY, Packet, PacketQueue, PushOutcome};
+use super::queue::{DEFAULT_CAPACITY, DEFAULT_TOTAL_CAPACITY, Packet, PacketQueue, PushOutcome};
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
@@ -23,7 +24,7 @@ pub struct RouterOptions {
     pub expiry: Duration,
     /// Bytes each link's queue may hold ([`DEFAULT_CAPACITY`]).
     pub queue_capacity: usize,
-    /// Bytes all queues together may hold (`usize::MAX`: no limit but each link's). A
+    /// Bytes all queues together may hold ([`DEFAULT_TOTAL_CAPACITY`]). A
     /// packet that would pass it first pushes out the oldest packets of the lowest
     /// priority queued anywhere (from the link holding the most, among equals) until an
     /// eighth of it is free, or is dropped itself if everything queued ranks above it.
@@ -40,7 +41,7 @@ impl Default for RouterOptions {
         RouterOptions {
             expiry: DEFAULT_EXPIRY,
             queue_capacity: DEFAULT_CAPACITY,
-            total_queue_capacity: usize::MAX,
+            total_queue_capacity: DEFAULT_TOTAL_CAPACITY,
             event_level: 3,
             cache_slots: cache::DEFAULT_SLOTS,
         }
@@ -178,6 +179,7 @@ impl Router {
         let summary = PacketSummary::of(frame);
 
         let src_link = &mut self.links[si];
+        src_link.counters.received(frame.as_bytes().len());
         if src_link.learn(src, now) && level >= 1 {
             out.events.push(Event::NewComponent {
                 address: src,
@@ -281,6 +283,12 @@ impl Router {
             victims.extend(key(k, queue));
         }
         self.queued_bytes.saturating_add(cost) <= cap
+    }
+
+    /// The counters of link `id`, to note what its transport did.
+    pub fn counters_mut(&mut self, id: LinkId) -> Option<&mut LinkCounters> {
+        let i = self.index(id)?;
+        Some(&mut self.links[i].counters)
     }
 
     /// Bytes held by all queues together (see [`RouterOptions::total_queue_capacity`]).

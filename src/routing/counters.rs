@@ -1,6 +1,9 @@
-//! Per-link traffic counters, printed at shutdown and on SIGUSR1.
+//! Per-link and per-interface traffic counters, and the one text that reports them (on
+//! SIGUSR1 and at exit).
 
 use std::fmt;
+
+use crate::wire::ParserStats;
 
 /// What went through one link.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -15,32 +18,27 @@ pub struct LinkCounters {
     pub bytes_out: u64,
     /// Frames dropped because sending failed.
     pub send_errors: u64,
-    /// Largest number of bytes waiting in the link's queue.
-    pub queue_high_water: usize,
     /// Frames from the link dropped for a bad checksum.
     pub bad_crc: u64,
 }
 
 impl LinkCounters {
     /// Notes a received frame of `len` bytes.
+    #[inline]
     pub fn received(&mut self, len: usize) {
         self.frames_in += 1;
         self.bytes_in += len as u64;
     }
 
     /// Notes a sent frame of `len` bytes.
+    #[inline]
     pub fn sent(&mut self, len: usize) {
         self.frames_out += 1;
         self.bytes_out += len as u64;
     }
-
-    /// Notes the queue's current size.
-    pub fn queue_level(&mut self, bytes: usize) {
-        self.queue_high_water = self.queue_high_water.max(bytes);
-    }
 }
 
-/// One link's counters with its name and queue drops, ready to print.
+/// One link's line of the counters report.
 pub struct LinkReport<'a> {
     /// The link's name (as in log lines).
     pub name: &'a str,
@@ -48,6 +46,8 @@ pub struct LinkReport<'a> {
     pub counters: LinkCounters,
     /// Packets dropped because its queue was full.
     pub queue_drops: u64,
+    /// The most bytes its queue held at once.
+    pub queue_high_water: usize,
 }
 
 impl fmt::Display for LinkReport<'_> {
@@ -63,8 +63,36 @@ impl fmt::Display for LinkReport<'_> {
             c.bytes_out,
             self.queue_drops,
             c.send_errors,
-            c.queue_high_water,
+            self.queue_high_water,
             c.bad_crc
+        )
+    }
+}
+
+/// One interface's line of the counters report: what its parser saw and its I/O errors.
+pub struct InterfaceReport<'a> {
+    /// The interface's label (`udp 0.0.0.0:14500`, `/dev/ttyUSB0`).
+    pub label: &'a str,
+    /// Its parser's totals.
+    pub parser: &'a ParserStats,
+    /// Receive, send and open errors other than "would block".
+    pub io_errors: u64,
+}
+
+impl fmt::Display for InterfaceReport<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = self.parser;
+        write!(
+            f,
+            "{}: {} frames, {} bad checksum, {} unknown id, {} bad flags, {} bad length, {} junk bytes, {} I/O errors",
+            self.label,
+            p.frames,
+            p.bad_crc,
+            p.unknown_id,
+            p.bad_flags,
+            p.bad_length,
+            p.junk_bytes,
+            self.io_errors
         )
     }
 }

@@ -1,0 +1,50 @@
+//! What every transport driver does for the event loop: move bytes between the operating
+//! system and the routing core ([`Engine`]), and nothing else. A new transport is one
+//! file implementing [`Driver`] and its config block; the loop does not change.
+
+use std::io;
+use std::os::fd::RawFd;
+
+use crate::routing::{Engine, InterfaceId, Timestamp};
+
+/// How a call into a driver ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Progress {
+    /// Everything waiting was handled.
+    Done,
+    /// Its turn ended with input still waiting: call `receive` again soon.
+    More,
+    /// The operating system refused output: wait until the descriptor is writable.
+    Blocked,
+    /// The device is gone (already reported to the core): stop watching it, then
+    /// [`Driver::close`] it.
+    Lost,
+}
+
+/// A transport: a socket or a device, and the bytes in flight between it and the core.
+pub trait Driver {
+    /// The core's interface whose bytes this driver moves.
+    fn interface(&self) -> InterfaceId;
+
+    /// The descriptor to watch, while open.
+    fn fd(&self) -> Option<RawFd>;
+
+    /// Opens the device when the core asks ([`crate::routing::Notice::Open`]). Sockets
+    /// that are open from the start need not override it.
+    fn open(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+
+    /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.
+    fn close(&mut self) {}
+
+    /// Reads what is waiting (a bounded amount per turn) and hands it to the core.
+    fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress;
+
+    /// Sends what the core has for this interface, as far as the operating system
+    /// takes it now.
+    fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress;
+
+    /// True if nothing the core handed out is still waiting to be written.
+    fn idle(&self) -> bool;
+}

@@ -1,0 +1,584 @@
+//! The routing core as the event loop drives it, in the shape of `quinn-proto`: bytes and
+//! time in, what to send and when to wake up out. It never reads a clock, touches a
+//! socket or blocks; the drivers in `src/io/` only move bytes between the operating
+//! system and these calls.
+//!
+//! ```text
+//! start:     ifc = engine.add_datagram_interface(label, max_bitrate)       (a UDP socket)
+//!            ifc = engine.add_stream_interface(device, …, now)             (a serial port)
+//! input:     engine.handle_datagram(ifc, peer, bytes, now)    every datagram received
+//!            engine.handle_stream(ifc, bytes, now)            every chunk read
+//! output:    engine.poll_transmit(ifc, now, room, &mut queue)   then send what it gave;
+//!            engine.on_sent(&t) for each sent, engine.on_send_failed(ifc, &t, &e) if not
+//! time:      arm one timer for engine.poll_timeout(); when it fires: handle_timeout(now)
+//! notices:   while let Some(n) = engine.poll_event() { log it, or open a stream it names }
+//! streams:   engine.stream_opened / stream_open_failed / stream_lost(ifc, now, …)
+//! ```
+//!
+//! What lives here: the per-interface parsers, which peer address is which link (links of
+//! datagram peers are created by their first valid frame and removed after the expiry
+//! time), the round robin between the peers of an interface, the `max_bitrate` pacer, the
+//! quiet-line rule for held-back bytes, the backoff for reopening lost devices, and every
+//! counter. The routing decisions themselves are the [`Router`]'s.
+
+use std::collections::VecDeque;
+use std::fmt::Display;
+use std::io;
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use super::counters::InterfaceReport;
+use super::event::Event;
+use super::intake::{Intake, Sender, UnknownIds};
+use super::interface::{Interface, InterfaceId, Kind, pacer_for};
+use super::link::LinkId;
+use super::pacer::Pace;
+use super::queue::Packet;
+use super::reconnect::Connection;
+use super::remotes::Remotes;
+use super::router::{Output, Router, RouterOptions};
+use super::stale::StaleTail;
+use super::time::Timestamp;
+use crate::address::Address;
+use crate::config::Config;
+use crate::wire::Parser;
+
+/// How often learned addresses are expired and idle datagram links removed.
+pub const TICK: Duration = Duration::from_secs(1);
+
+/// Most packets one link of an unpaced datagram interface hands out in a row before the
+/// next link's turn: a run of datagrams to one peer that the driver can send as one
+/// segmentation-offload message, short enough that no peer waits long for its turn.
+pub const SEND_TURN: usize = 16;
+
+/// One packet to send: to which link, and for a datagram interface to which peer.
+#[derive(Debug, Clone)]
+pub struct Transmit {
+    /// The link it goes to.
+    pub link: LinkId,
+    /// The peer of a datagram interface (`None` on a stream).
+    pub to: Option<SocketAddr>,
+    /// The frame's bytes, exactly as received.
+    pub packet: Packet,
+}
+
+/// Something the core tells the event loop: lines for the operator, links that came and
+/// went, and streams to open.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Notice {
+    /// A routing log line, printed at its level (1–3).
+    Log(Event),
+    /// A datagram peer sent its first valid frame and is now a link.
+    LinkAdded {
+        /// The new link.
+        id: LinkId,
+        /// Its name (`a.b.c.d:port`).
+        name: String,
+    },
+    /// A datagram link was removed: its addresses expired.
+    LinkRemoved {
+        /// The link.
+        id: LinkId,
+        /// Its name.
+        name: String,
+    },
+    /// A warning for standard error.
+    Warning(String),
+    /// An error for standard error.
+    Error(String),
+    /// A message id outside the dialect was seen for the first time.
+    UnknownId(u32),
+    /// The stream interface should be opened now; answer with
+    /// [`Engine::stream_opened`] or [`Engine::stream_open_failed`].
+    Open(InterfaceId),
+}
+
+/// The sans-IO routing core: interfaces, links, the router, timers and counters.
+#[derive(Debug)]
+pub struct Engine {
+    router: Router,
+    interfaces: Vec<Interface>,
+    out: Output,
+    notices: VecDeque<Notice>,
+    unknown: UnknownIds,
+    next_tick: Timestamp,
+}
+
+impl Engine {
+    /// A core with no interfaces, filtering with `config`'s chains.
+    pub fn new(config: &Config, options: RouterOptions) -> Self {
+        Engine {
+            router: Router::with_options(config, options),
+            interfaces: Vec::new(),
+            out: Output::default(),
+            notices: VecDeque::new(),
+            unknown: UnknownIds::default(),
+            next_tick: Timestamp::ZERO + TICK,
+        }
+    }
+
+    /// The router (links, queues, filter statistics).
+    pub fn router(&self) -> &Router {
+        &self.router
+    }
+
+    /// Interface `id`, if it exists.
+    pub fn interface(&self, id: InterfaceId) -> Option<&Interface> {
+        self.interfaces.get(id.0)
+    }
+
+    /// Adds an interface of datagrams from and to any number of peers (a UDP socket)
+    /// named `label`, sending at most `max_bitrate` bit/s (0: no limit).
+    pub fn add_datagram_interface(&mut self, label: String, max_bitrate: u64) -> InterfaceId {
+        self.push_interface(Interface {
+            described: label.clone(),
+            label,
+            parser: Parser::new(),
+            tail: StaleTail::new(None),
+            pacer: pacer_for(max_bitrate),
+            pace_deadline: None,
+            io_errors: 0,
+            kind: Kind::Datagram {
+                remotes: Remotes::default(),
+                last_sender: None,
+            },
+        })
+    }
+
+    /// Adds a byte-stream interface that is one link named `device` (a serial port at
+    /// `baudrate`), reaching `preload` permanently. The core asks for it to be opened
+    /// ([`Notice::Open`]) at the first [`Engine::handle_timeout`].
+    pub fn add_stream_interface(
+        &mut self,
+        device: &str,
+        preload: &[Address],
+        baudrate: Option<u32>,
+        now: Timestamp,
+    ) -> InterfaceId {
+        let link = self
+            .router
+            .add_serial_link(device, preload, now, &mut self.out);
+        self.take_output();
+        self.push_interface(Interface {
+            label: device.to_string(),
+            described: format!("serial device {device}"),
+            parser: Parser::new(),
+            tail: StaleTail::new(baudrate),
+            pacer: pacer_for(0),
+            pace_deadline: None,
+            io_errors: 0,
+            kind: Kind::Stream {
+                link,
+                connection: Connection::new(now),
+            },
+        })
+    }
+
+    fn push_interface(&mut self, interface: Interface) -> InterfaceId {
+        self.interfaces.push(interface);
+        InterfaceId(self.interfaces.len() - 1)
+    }
+
+    /// The link of stream interface `id`.
+    pub fn stream_link(&self, id: InterfaceId) -> Option<LinkId> {
+        match self.interfaces.get(id.0)?.kind {
+            Kind::Stream { link, .. } => Some(link),
+            Kind::Datagram { .. } => None,
+        }
+    }
+
+    /// Routes the frames of a datagram from `peer` on interface `id`. A frame may
+    /// continue in the same peer's next datagram; a datagram from another peer drops it.
+    pub fn handle_datagram(
+        &mut self,
+        id: InterfaceId,
+        peer: SocketAddr,
+        bytes: &[u8],
+        now: Timestamp,
+    ) {
+        let Some(Interface {
+            parser, tail, kind, ..
+        }) = self.interfaces.get_mut(id.0)
+        else {
+            return;
+        };
+        let Kind::Datagram {
+            remotes,
+            last_sender,
+        } = kind
+        else {
+            return;
+        };
+        if *last_sender != Some(peer) {
+            parser.clear();
+            *last_sender = Some(peer);
+        }
+        let link = remotes.link_of(peer);
+        let mut intake = Intake {
+            router: &mut self.router,
+            out: &mut self.out,
+            notices: &mut self.notices,
+            unknown: &mut self.unknown,
+            now,
+            sender: Sender::Remote {
+                remotes,
+                address: peer,
+                link,
+            },
+        };
+        parser.feed_events(bytes, &mut intake);
+        tail.received(now);
+        self.take_output();
+    }
+
+    /// Routes the frames completed by `bytes`, read from stream interface `id`.
+    pub fn handle_stream(&mut self, id: InterfaceId, bytes: &[u8], now: Timestamp) {
+        let Some(Interface {
+            parser, tail, kind, ..
+        }) = self.interfaces.get_mut(id.0)
+        else {
+            return;
+        };
+        let Kind::Stream { link, .. } = *kind else {
+            return;
+        };
+        let mut intake = Intake {
+            router: &mut self.router,
+            out: &mut self.out,
+            notices: &mut self.notices,
+            unknown: &mut self.unknown,
+            now,
+            sender: Sender::Stream(link),
+        };
+        parser.feed_events(bytes, &mut intake);
+        tail.received(now);
+        self.take_output();
+    }
+
+    /// Moves the router's events into the notices and readies its output for reuse.
+    fn take_output(&mut self) {
+        if !self.out.events.is_empty() {
+            self.notices
+                .extend(self.out.events.drain(..).map(Notice::Log));
+        }
+        self.out.clear();
+    }
+
+    /// Appends to `queue` up to `room` packets interface `id` may send at `now`: highest
+    /// priority first on each link; between the peers of a datagram interface in turns
+    /// (runs of up to [`SEND_TURN`] packets without `max_bitrate`, one packet with it);
+    /// never faster than `max_bitrate`. When the pacer holds a packet back, the time it
+    /// may go is part of [`Engine::poll_timeout`].
+    pub fn poll_transmit(
+        &mut self,
+        id: InterfaceId,
+        now: Timestamp,
+        room: usize,
+        queue: &mut VecDeque<Transmit>,
+    ) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if room == 0 {
+            return;
+        }
+        let Interface {
+            pacer,
+            pace_deadline,
+            kind,
+            ..
+        } = interface;
+        *pace_deadline = None;
+        let unpaced = pacer.rate() == 0;
+        let router = &mut self.router;
+        let mut left = room;
+        // Takes the next packet of `link` if the pacer lets it go now.
+        let mut take = |router: &mut Router, link: LinkId| -> Result<Option<Packet>, Timestamp> {
+            let Some(len) = router.peek(link).map(|p| p.len()) else {
+                return Ok(None);
+            };
+            if let Pace::At(t) = pacer.check(now, len) {
+                return Err(t);
+            }
+            pacer.sent(now, len);
+            Ok(router.pop(link))
+        };
+        match kind {
+            Kind::Datagram { remotes, .. } => {
+                let turn_len = if unpaced { SEND_TURN } else { 1 };
+                'turns: while left > 0 {
+                    let Some(turn) = remotes.next_ready(|l| router.peek(l).is_some()) else {
+                        break;
+                    };
+                    let mut sent = 0;
+                    while sent < turn_len && left > 0 {
+                        match take(router, turn.link) {
+                            Ok(Some(packet)) => {
+                                queue.push_back(Transmit {
+                                    link: turn.link,
+                                    to: Some(turn.address),
+                                    packet,
+                                });
+                                sent += 1;
+                                left -= 1;
+                            }
+                            Ok(None) => break,
+                            Err(t) => {
+                                *pace_deadline = Some(t);
+                                if sent > 0 {
+                                    remotes.end_turn(&turn);
+                                }
+                                break 'turns;
+                            }
+                        }
+                    }
+                    remotes.end_turn(&turn);
+                }
+            }
+            Kind::Stream {
+                link, connection, ..
+            } => {
+                if !connection.is_open() {
+                    return;
+                }
+                while left > 0 {
+                    match take(router, *link) {
+                        Ok(Some(packet)) => {
+                            queue.push_back(Transmit {
+                                link: *link,
+                                to: None,
+                                packet,
+                            });
+                            left -= 1;
+                        }
+                        Ok(None) => break,
+                        Err(t) => {
+                            *pace_deadline = Some(t);
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Notes that `t` was sent.
+    #[inline]
+    pub fn on_sent(&mut self, t: &Transmit) {
+        if let Some(c) = self.router.counters_mut(t.link) {
+            c.sent(t.packet.len());
+        }
+    }
+
+    /// Notes that `t` could not be sent on interface `id` (it is dropped). A datagram
+    /// peer's first failure is reported; later ones are only counted, so a dead route
+    /// cannot flood the log.
+    pub fn on_send_failed(&mut self, id: InterfaceId, t: &Transmit, error: &io::Error) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        interface.io_errors += 1;
+        let Some(c) = self.router.counters_mut(t.link) else {
+            return;
+        };
+        c.send_errors += 1;
+        if c.send_errors == 1
+            && let Some(to) = t.to
+        {
+            self.notices.push_back(Notice::Error(format!(
+                "{}: sending to {to} failed: {error} (further failures are only counted)",
+                interface.described
+            )));
+        }
+    }
+
+    /// Notes that receiving on interface `id` failed (other than "would block").
+    pub fn on_receive_failed(&mut self, id: InterfaceId, error: &io::Error) {
+        if let Some(interface) = self.interfaces.get_mut(id.0) {
+            interface.io_errors += 1;
+            self.notices.push_back(Notice::Error(format!(
+                "{}: receive failed: {error}",
+                interface.described
+            )));
+        }
+    }
+
+    /// Stream interface `id` was opened at `now`.
+    pub fn stream_opened(&mut self, id: InterfaceId, _now: Timestamp) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if let Kind::Stream { connection, .. } = &mut interface.kind {
+            *connection = Connection::Open;
+            interface.parser.clear();
+            if interface.io_errors > 0 {
+                self.notices
+                    .push_back(Notice::Warning(format!("{} is back", interface.described)));
+            }
+        }
+    }
+
+    /// Opening stream interface `id` failed at `now`: it is tried again after a backoff
+    /// (said once per outage, not once per attempt).
+    pub fn stream_open_failed(&mut self, id: InterfaceId, now: Timestamp, error: &dyn Display) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if let Kind::Stream { connection, .. } = &mut interface.kind
+            && connection.failed(now)
+        {
+            interface.io_errors += 1;
+            self.notices.push_back(Notice::Warning(format!(
+                "cannot open {}: {error}; retrying until it appears",
+                interface.described
+            )));
+        }
+    }
+
+    /// Stream interface `id` was lost at `now` (unplugged, read or write error): held-back
+    /// bytes are dropped and reopening starts after the first backoff.
+    pub fn stream_lost(&mut self, id: InterfaceId, now: Timestamp, why: &dyn Display) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if let Kind::Stream { connection, .. } = &mut interface.kind {
+            connection.lost(now);
+            interface.io_errors += 1;
+            interface.parser.clear();
+            self.notices.push_back(Notice::Warning(format!(
+                "{} lost: {why}",
+                interface.described
+            )));
+        }
+    }
+
+    /// The next instant something is due: the expiry tick, held-back bytes turning
+    /// stale, a packet the pacer holds back, or reopening a stream.
+    pub fn poll_timeout(&self) -> Timestamp {
+        let mut due = self.next_tick;
+        for i in &self.interfaces {
+            let stream = match &i.kind {
+                Kind::Stream { connection, .. } => Some(connection),
+                Kind::Datagram { .. } => None,
+            };
+            let open = stream.is_none_or(Connection::is_open);
+            let stale = open
+                .then(|| i.tail.deadline(i.parser.pending_len()))
+                .flatten();
+            let retry = stream.and_then(Connection::retry_at);
+            for t in [stale, i.pace_deadline, retry].into_iter().flatten() {
+                due = due.min(t);
+            }
+        }
+        due
+    }
+
+    /// Runs what is due at `now` (see [`Engine::poll_timeout`]).
+    pub fn handle_timeout(&mut self, now: Timestamp) {
+        for (index, interface) in self.interfaces.iter_mut().enumerate() {
+            if interface.pace_deadline.is_some_and(|t| t <= now) {
+                // The caller polls for transmits next; the pacer decides afresh then.
+                interface.pace_deadline = None;
+            }
+            let Interface {
+                parser, tail, kind, ..
+            } = interface;
+            let stale = tail
+                .deadline(parser.pending_len())
+                .is_some_and(|t| t <= now);
+            let sender = match kind {
+                Kind::Stream { link, connection } => {
+                    if connection.ask_if_due(now) {
+                        self.notices.push_back(Notice::Open(InterfaceId(index)));
+                    }
+                    (stale && connection.is_open()).then_some(Sender::Stream(*link))
+                }
+                Kind::Datagram {
+                    remotes,
+                    last_sender,
+                } => match (stale, *last_sender) {
+                    (true, Some(address)) => Some(Sender::Remote {
+                        link: remotes.link_of(address),
+                        remotes,
+                        address,
+                    }),
+                    _ => None,
+                },
+            };
+            if let Some(sender) = sender {
+                // The candidate is rejected and the bytes behind its start scanned again,
+                // so valid frames held up behind noise are routed now.
+                parser.finish(&mut Intake {
+                    router: &mut self.router,
+                    out: &mut self.out,
+                    notices: &mut self.notices,
+                    unknown: &mut self.unknown,
+                    now,
+                    sender,
+                });
+            }
+        }
+        if now >= self.next_tick {
+            for id in self.router.tick(now) {
+                self.forget(id);
+            }
+            self.next_tick = now + TICK;
+        }
+        self.take_output();
+    }
+
+    /// Forgets the peer of a link the router removed.
+    fn forget(&mut self, id: LinkId) {
+        for interface in &mut self.interfaces {
+            if let Kind::Datagram { remotes, .. } = &mut interface.kind
+                && let Some(address) = remotes.remove(id)
+            {
+                self.notices.push_back(Notice::LinkRemoved {
+                    id,
+                    name: address.to_string(),
+                });
+                return;
+            }
+        }
+    }
+
+    /// The next notice, oldest first.
+    #[inline]
+    pub fn poll_event(&mut self) -> Option<Notice> {
+        self.notices.pop_front()
+    }
+
+    /// True if interface `id` has nothing queued that it could send (a closed stream
+    /// can send nothing).
+    pub fn is_idle(&self, id: InterfaceId) -> bool {
+        let Some(interface) = self.interfaces.get(id.0) else {
+            return true;
+        };
+        match &interface.kind {
+            Kind::Datagram { remotes, .. } => {
+                remotes.iter().all(|(l, _)| self.router.peek(l).is_none())
+            }
+            Kind::Stream {
+                link, connection, ..
+            } => !connection.is_open() || self.router.peek(*link).is_none(),
+        }
+    }
+
+    /// The counters of every link (in creation order) and every interface, one line
+    /// each, under a `mavtables counters:` heading.
+    pub fn report(&self) -> String {
+        let mut text = String::from("mavtables counters:\n");
+        for link in self.router.links() {
+            text.push_str(&format!("  {}\n", link.report()));
+        }
+        for i in &self.interfaces {
+            let line = InterfaceReport {
+                label: &i.label,
+                parser: i.parser.stats(),
+                io_errors: i.io_errors,
+            };
+            text.push_str(&format!("  {line}\n"));
+        }
+        text
+    }
+}

@@ -1,0 +1,134 @@
+//! Frames from a parser into the router: the sender's link (a datagram remote gets one on
+//! its first valid frame), counters, and unknown message ids reported once per id.
+
+use std::collections::{HashSet, VecDeque};
+use std::net::SocketAddr;
+
+use super::engine::Notice;
+use super::link::LinkId;
+use super::remotes::Remotes;
+use super::router::{Output, Router};
+use super::time::Timestamp;
+use crate::wire::{Frame, ParseEvents, Rejection};
+
+/// How many distinct unknown ids are reported; beyond that they are only counted, so a
+/// flood of random ids can neither fill the log nor grow memory.
+pub const MAX_REPORTED_IDS: usize = 1024;
+
+/// Message ids already reported as unknown (once per id, not per frame).
+#[derive(Debug, Default)]
+pub struct UnknownIds(HashSet<u32>);
+
+impl UnknownIds {
+    /// Reports `id` the first time it is seen.
+    pub fn report(&mut self, id: u32, notices: &mut VecDeque<Notice>) {
+        if self.0.len() >= MAX_REPORTED_IDS || !self.0.insert(id) {
+            return;
+        }
+        notices.push_back(Notice::UnknownId(id));
+        if self.0.len() == MAX_REPORTED_IDS {
+            notices.push_back(Notice::Warning(format!(
+                "{MAX_REPORTED_IDS} unknown message ids reported; further ones are only counted"
+            )));
+        }
+    }
+}
+
+/// Where the bytes being parsed come from.
+pub enum Sender<'a> {
+    /// A stream with its one link.
+    Stream(LinkId),
+    /// A peer of a datagram interface, with its link once it has one.
+    Remote {
+        /// The interface's remotes (where a new link is recorded).
+        remotes: &'a mut Remotes,
+        /// The peer.
+        address: SocketAddr,
+        /// Its link, if it has sent a valid frame before.
+        link: Option<LinkId>,
+    },
+}
+
+/// Parser events of one input, routed through the router.
+pub struct Intake<'a> {
+    /// The router.
+    pub router: &'a mut Router,
+    /// The router's output of the current call.
+    pub out: &'a mut Output,
+    /// Notices for the operator.
+    pub notices: &'a mut VecDeque<Notice>,
+    /// Unknown-id reporting.
+    pub unknown: &'a mut UnknownIds,
+    /// The time of arrival.
+    pub now: Timestamp,
+    /// Where the bytes came from.
+    pub sender: Sender<'a>,
+}
+
+impl Intake<'_> {
+    /// The sender's link, created for a datagram peer on its first valid frame.
+    fn link(&mut self) -> LinkId {
+        match &mut self.sender {
+            Sender::Stream(id) => *id,
+            Sender::Remote {
+                remotes,
+                address,
+                link,
+            } => *link.get_or_insert_with(|| {
+                let name = address.to_string();
+                let id = self.router.add_udp_link(&name, self.now);
+                remotes.insert(*address, id);
+                self.notices.push_back(Notice::LinkAdded { id, name });
+                id
+            }),
+        }
+    }
+
+    fn existing_link(&self) -> Option<LinkId> {
+        match &self.sender {
+            Sender::Stream(id) => Some(*id),
+            Sender::Remote { link, .. } => *link,
+        }
+    }
+}
+
+impl ParseEvents for Intake<'_> {
+    #[inline]
+    fn frame(&mut self, frame: Frame<'_>) {
+        let id = self.link();
+        self.router.receive(id, &frame, self.now, self.out);
+    }
+
+    fn rejected(&mut self, _offset: u64, why: Rejection) {
+        match why {
+            Rejection::UnknownId(id) => self.unknown.report(id, self.notices),
+            Rejection::BadCrc => {
+                if let Some(c) = self
+                    .existing_link()
+                    .and_then(|id| self.router.counters_mut(id))
+                {
+                    c.bad_crc += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reporting_is_bounded() {
+        let mut u = UnknownIds::default();
+        let mut notices = VecDeque::new();
+        for id in 0..(MAX_REPORTED_IDS as u32 * 4) {
+            u.report(id, &mut notices);
+            u.report(id, &mut notices);
+        }
+        assert_eq!(u.0.len(), MAX_REPORTED_IDS);
+        // One notice per id, and one warning that the rest are only counted.
+        assert_eq!(notices.len(), MAX_REPORTED_IDS + 1);
+    }
+}

@@ -1,0 +1,93 @@
+//! Whether a stream interface (a serial port) is open, and when to try opening it again:
+//! at once at start, then with a backoff doubling from [`FIRST_BACKOFF`] to
+//! [`MAX_BACKOFF`] while it stays missing.
+
+use std::time::Duration;
+
+use super::time::Timestamp;
+
+/// First wait before trying again to open a missing device.
+pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
+/// Longest wait between attempts to open a missing device.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+
+/// The state of a stream's connection.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Connection {
+    /// Open: bytes flow.
+    Open,
+    /// Closed; try again at `retry_at`.
+    Closed {
+        /// When the next attempt is due.
+        retry_at: Timestamp,
+        /// The wait after the next failure.
+        backoff: Duration,
+        /// The driver was asked to open it and has not answered yet.
+        asked: bool,
+    },
+}
+
+impl Connection {
+    /// Closed, to be opened at `now`.
+    pub fn new(now: Timestamp) -> Self {
+        Connection::Closed {
+            retry_at: now,
+            backoff: FIRST_BACKOFF,
+            asked: false,
+        }
+    }
+
+    /// True when open.
+    pub fn is_open(&self) -> bool {
+        *self == Connection::Open
+    }
+
+    /// When an attempt is due and not yet asked for.
+    pub fn retry_at(&self) -> Option<Timestamp> {
+        match *self {
+            Connection::Closed {
+                retry_at,
+                asked: false,
+                ..
+            } => Some(retry_at),
+            _ => None,
+        }
+    }
+
+    /// If an attempt is due at `now`, marks it asked for and returns true.
+    pub fn ask_if_due(&mut self, now: Timestamp) -> bool {
+        match self {
+            Connection::Closed {
+                retry_at, asked, ..
+            } if !*asked && *retry_at <= now => {
+                *asked = true;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The attempt failed at `now`: wait the backoff, then double it. Returns true if
+    /// this is the first failure of an outage (the one worth saying).
+    pub fn failed(&mut self, now: Timestamp) -> bool {
+        let backoff = match *self {
+            Connection::Closed { backoff, .. } => backoff,
+            Connection::Open => FIRST_BACKOFF,
+        };
+        *self = Connection::Closed {
+            retry_at: now + backoff,
+            backoff: (backoff * 2).min(MAX_BACKOFF),
+            asked: false,
+        };
+        backoff == FIRST_BACKOFF
+    }
+
+    /// The device was lost at `now` (it was open): try again after the first backoff.
+    pub fn lost(&mut self, now: Timestamp) {
+        *self = Connection::Closed {
+            retry_at: now + FIRST_BACKOFF,
+            backoff: FIRST_BACKOFF * 2,
+            asked: false,
+        };
+    }
+}

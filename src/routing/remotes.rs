@@ -1,0 +1,131 @@
+//! The remotes of one datagram interface: which peer address is which link, in the order
+//! their first valid frame arrived, and whose turn it is to send.
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+
+use super::link::LinkId;
+
+/// Peer address ↔ link of one datagram interface, and its round-robin turn.
+#[derive(Debug, Default)]
+pub struct Remotes {
+    by_address: HashMap<SocketAddr, LinkId>,
+    /// Links in creation order with their peer address: the round-robin order.
+    order: Vec<(LinkId, SocketAddr)>,
+    /// Index into `order` of the link whose turn comes next.
+    next_turn: usize,
+}
+
+impl Remotes {
+    /// The link of `address`, if it has one.
+    #[inline]
+    pub fn link_of(&self, address: SocketAddr) -> Option<LinkId> {
+        self.by_address.get(&address).copied()
+    }
+
+    /// Records that `address` is link `id` (its first valid frame just arrived).
+    pub fn insert(&mut self, address: SocketAddr, id: LinkId) {
+        self.by_address.insert(address, id);
+        self.order.push((id, address));
+    }
+
+    /// Forgets link `id`; returns its address if it was one of these remotes.
+    pub fn remove(&mut self, id: LinkId) -> Option<SocketAddr> {
+        let i = self.order.iter().position(|(l, _)| *l == id)?;
+        let (_, address) = self.order.remove(i);
+        self.by_address.remove(&address);
+        if self.next_turn > i {
+            self.next_turn -= 1;
+        }
+        if self.next_turn >= self.order.len() {
+            self.next_turn = 0;
+        }
+        Some(address)
+    }
+
+    /// Every link with its address, in creation order.
+    pub fn iter(&self) -> impl Iterator<Item = (LinkId, SocketAddr)> + '_ {
+        self.order.iter().copied()
+    }
+
+    /// Number of remotes.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// True when no remote has sent a valid frame yet (or all have expired).
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// The first link, in round-robin order from the current turn, for which `ready`
+    /// holds. One scan at most; the turn stays where it is until [`Remotes::end_turn`].
+    #[inline]
+    pub fn next_ready(&self, mut ready: impl FnMut(LinkId) -> bool) -> Option<Turn> {
+        let n = self.order.len();
+        (0..n).find_map(|k| {
+            let index = (self.next_turn + k) % n;
+            let (link, address) = self.order[index];
+            ready(link).then_some(Turn {
+                index,
+                link,
+                address,
+            })
+        })
+    }
+
+    /// Passes the turn to the link after the one that just had `turn`.
+    #[inline]
+    pub fn end_turn(&mut self, turn: &Turn) {
+        self.next_turn = (turn.index + 1) % self.order.len().max(1);
+    }
+}
+
+/// A link whose turn it is to send (see [`Remotes::next_ready`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Turn {
+    index: usize,
+    /// The link.
+    pub link: LinkId,
+    /// Its peer address.
+    pub address: SocketAddr,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn addr(port: u16) -> SocketAddr {
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    #[test]
+    fn turns_go_round_and_survive_removal() {
+        let mut r = Remotes::default();
+        for i in 0..4 {
+            r.insert(addr(1000 + i), LinkId(u64::from(i)));
+        }
+        let mut turns = Vec::new();
+        for _ in 0..6 {
+            let turn = r.next_ready(|_| true).expect("a link is ready");
+            r.end_turn(&turn);
+            turns.push(Some(turn.link.0));
+        }
+        assert_eq!(
+            turns,
+            [Some(0), Some(1), Some(2), Some(3), Some(0), Some(1)]
+        );
+        // Link 2's turn is next; removing link 0 (before it) keeps link 2 next.
+        assert_eq!(r.remove(LinkId(0)), Some(addr(1000)));
+        assert_eq!(r.next_ready(|_| true).map(|t| t.link.0), Some(2));
+        // Without `end_turn` the turn stays.
+        assert_eq!(r.next_ready(|_| true).map(|t| t.link.0), Some(2));
+        assert_eq!(r.link_of(addr(1000)), None);
+        assert_eq!(r.link_of(addr(1003)), Some(LinkId(3)));
+        // Only link 1 ready: found whatever the turn.
+        assert_eq!(r.next_ready(|id| id.0 == 1).map(|t| t.link.0), Some(1));
+        assert_eq!(r.next_ready(|_| false), None);
+        assert_eq!(r.remove(LinkId(9)), None);
+        assert_eq!(r.len(), 3);
+    }
+}
