@@ -28,6 +28,8 @@ const SERIAL_BASE: usize = 1 << 20;
 const TICK: Duration = Duration::from_secs(1);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
+/// How long the log writers may still write after the loop ends.
+const LOG_DRAIN: Duration = Duration::from_secs(1);
 /// Per-link queue bound: 1 MiB is a minute of backlog for a 128 kbit/s radio.
 pub const QUEUE_CAPACITY: usize = 1024 * 1024;
 /// Bound of all queues together, so that no number of links (a flood of spoofed UDP
@@ -229,7 +231,7 @@ impl Runtime {
                 p.frames, p.bad_crc, p.unknown_id, p.bad_flags, p.bad_length, p.junk_bytes, errors
             ));
         }
-        eprint!("{text}");
+        log::stderr_text(&text);
     }
 
     /// The next time something is due: the tick, a serial reopening, or the end of the
@@ -351,6 +353,13 @@ impl Runtime {
 /// Returns the process exit status: 0 after a clean shutdown, 1 if it could not start
 /// (a UDP port that cannot be bound; serial devices are retried instead).
 pub fn run(config: &Config, loglevel: u8) -> u8 {
+    let status = run_until_stopped(config, loglevel);
+    // The log writers get a bounded time to write what is buffered.
+    log::drain(LOG_DRAIN);
+    status
+}
+
+fn run_until_stopped(config: &Config, loglevel: u8) -> u8 {
     match start(config, loglevel) {
         Ok(mut rt) => {
             let result = rt.run();
