@@ -4,10 +4,11 @@
 //!
 //! Nothing here waits for whoever reads those streams: the event loop must not stall
 //! behind a paused terminal or a stuck log collector. Each stream has a writer thread of
-//! its own (started on first use) fed through a bounded buffer (`log/sink.rs`); lines that do
-//! not fit are dropped and counted, and one line says how many once the reader catches
-//! up. The logger collects a loop turn's lines and hands them over at [`Logger::flush`].
-//! Before the process exits, [`drain`] gives the writers a bounded time to finish.
+//! its own (started on first use) fed through a bounded buffer (`log/sink.rs`); lines
+//! that do not fit are dropped and counted, and one line says how many once the reader
+//! catches up. The logger collects a loop turn's lines and hands them over at
+//! [`Logger::flush`]. Before the process exits, [`drain`] gives the writers a bounded
+//! time to finish.
 
 mod sink;
 
