@@ -731,7 +731,7 @@ mod tests {
         let start = std::time::Instant::now();
         let mut buf = [0u8; 8];
         loop {
-            // SAFETY (test): reading 8 bytes into a local buffer.
+            // SAFETY: reads at most 8 bytes into a live local buffer of 8 bytes.
             let n = unsafe { libc::read(t.as_raw_fd(), buf.as_mut_ptr().cast(), 8) };
             if n == 8 {
                 break;
