@@ -602,6 +602,52 @@ fn priority_under_64_kbits() {
     router.stop();
 }
 
+/// The original's large-packet scenario: 5,000 ENCAPSULATED_DATA (267-byte frames) from a
+/// UDP sender and 5,000 from a serial sender, all for a listener behind a UDP interface
+/// limited to 262,144 bit/s. They arrive in a second or two and leave over about 81 s,
+/// so the listener's queue holds up to about 2.6 MB; the default queue bounds hold it
+/// and every frame arrives, in each sender's order (the original, unbounded, delivered
+/// them all). Slow by nature: the link's rate sets the time.
+#[test]
+fn large_packets_into_256_kbits_lose_nothing() {
+    let s = Scratch::new("large");
+    let port = free_udp_port();
+    let dev = s.path("ttyS0");
+    // Only the listener (127.1) is a destination: the shared 256 kbit/s carries 10,000.
+    let config = udp_block(port, "max_bitrate 262144; ")
+        + &serial_block(&dev, "")
+        + "chain default {\n    accept if ENCAPSULATED_DATA to 127.1;\n}\n";
+    let items = vec!["ENCAPSULATED_DATA"; 5000];
+    let mut serial_tx = sender(&pty(&dev), "172.128", &[], &items);
+    let mut router = Router::start(&s, &config, 1);
+    let mut rx = Peer::start(&peer_args(
+        "listen",
+        &udp(port),
+        "127.1",
+        &[
+            "--count".into(),
+            "10000".into(),
+            "--timeout".into(),
+            "150".into(),
+        ],
+    ));
+    learn(&mut router, &mut rx, "127.1", "127.0.0.1:");
+    let mut udp_tx = sender(&udp(port), "192.168", &[], &items);
+    serial_tx.go();
+    udp_tx.go();
+    let from_udp = udp_tx.sent(Duration::from_secs(30));
+    let from_serial = serial_tx.sent(Duration::from_secs(30));
+    let got = rx.received(Duration::from_secs(160));
+    assert_eq!(got.len(), 10_000, "frames received");
+    assert_frames("from 192.168", &from_source(&got, "192.168"), &from_udp);
+    assert_frames("from 172.128", &from_source(&got, "172.128"), &from_serial);
+    let counters = router.stop().stderr.join("\n");
+    assert!(counters.contains("out 10000 frames"), "{counters}");
+    for line in counters.lines().filter(|l| l.contains("(queue full)")) {
+        assert!(line.contains("dropped 0 (queue full)"), "{line}");
+    }
+}
+
 /// A silent serial listener (10.10, never sends) behind `preload 192.168; preload 127.1;`
 /// gets broadcasts and packets for the preloaded systems (also a system broadcast and an
 /// unknown component of a preloaded system); packets for the unknown system 172 are not
