@@ -2,13 +2,13 @@
 //! configuration, `--ast` and `--check`.
 
 mod args;
+mod commands;
 mod run;
 mod search;
 mod text;
-mod tools;
 
 pub use args::{Options, parse};
+pub use commands::run_tool;
 pub use run::{Outcome, run};
 pub use search::find_config;
 pub use text::{help, version};
-pub use tools::run_tool;

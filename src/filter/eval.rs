@@ -32,8 +32,9 @@ enum Entry {
     Goto(Option<i32>),
 }
 
+/// One chain being evaluated: where to resume in it and how it was entered.
 #[derive(Debug, Clone, Copy)]
-struct Frame {
+struct CallFrame {
     chain: usize,
     next_rule: usize,
     entry: Entry,
@@ -45,7 +46,7 @@ pub struct Evaluator {
     chains: Vec<Chain>,
     start: usize,
     default_action: DefaultAction,
-    stack: Vec<Frame>,
+    stack: Vec<CallFrame>,
 }
 
 impl Evaluator {
@@ -74,7 +75,7 @@ impl Evaluator {
     fn walk(&mut self, message_id: u32, source: Address, dest: Address) -> Outcome {
         let depth_limit = self.chains.len().max(1);
         self.stack.clear();
-        self.stack.push(Frame {
+        self.stack.push(CallFrame {
             chain: self.start,
             next_rule: 0,
             entry: Entry::Start,
@@ -132,7 +133,7 @@ impl Evaluator {
     }
 
     fn push(&mut self, chain: usize, entry: Entry) {
-        self.stack.push(Frame {
+        self.stack.push(CallFrame {
             chain,
             next_rule: 0,
             entry,

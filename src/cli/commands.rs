@@ -4,10 +4,10 @@ use std::io::{IsTerminal, Write};
 
 use super::Outcome;
 use crate::address::Subnet;
+use crate::commands::inspect::{self, Options};
+use crate::commands::replay::{self, ProgressBar, Speed, Target};
 use crate::config::suggest::did_you_mean;
 use crate::dialect;
-use crate::tools::inspect::{self, Options};
-use crate::tools::replay::{self, ProgressBar, Speed, Target};
 
 const INSPECT_USAGE: &str = "\
 usage: mavtables inspect [OPTIONS] FILE...
