@@ -8,7 +8,7 @@ use super::ast::{
 use super::diagnostic::{Diagnostic, Position};
 use super::model::*;
 use super::{Span, suggest};
-use crate::address::{Address, Subnet};
+use crate::address::{Address, PrefixMask, Subnet};
 use crate::dialect;
 use std::collections::HashMap;
 use std::net::Ipv4Addr;
@@ -324,33 +324,24 @@ impl<'a> Checker<'a, '_> {
                 let mask = self.address(&mask);
                 Some(Subnet::new(address?, mask?))
             }
-            MaskAst::Slash(bits) => {
-                let text = self.text(bits);
-                match text.parse::<u8>().ok().filter(|b| *b <= 16) {
-                    Some(b) => Subnet::with_prefix(address?, b),
-                    None => {
-                        self.error(Diagnostic::new(
-                            bits,
-                            format!(
-                                "Forward slash mask ({text}) is outside of allowed range (0 - 16)."
-                            ),
-                        ));
-                        None
-                    }
-                }
-            }
-            MaskAst::Backslash(bits) => {
-                let text = self.text(bits);
-                match text.parse::<u8>().ok().filter(|b| *b <= 8) {
-                    Some(b) => Subnet::with_component_prefix(address?, b),
-                    None => {
-                        self.error(Diagnostic::new(
-                            bits,
-                            format!("Backslash mask ({text}) is outside of allowed range (0 - 8)."),
-                        ));
-                        None
-                    }
-                }
+            MaskAst::Slash(bits) => self.prefix_masked(address, PrefixMask::Slash, bits),
+            MaskAst::Backslash(bits) => self.prefix_masked(address, PrefixMask::Backslash, bits),
+        }
+    }
+
+    /// `address` under the bit count written at `bits` (`/n` or `\n`); the bit count is
+    /// checked even when the address was wrong, so both errors are reported.
+    fn prefix_masked(
+        &mut self,
+        address: Option<Address>,
+        form: PrefixMask,
+        bits: Span,
+    ) -> Option<Subnet> {
+        match form.bits(self.text(bits)) {
+            Ok(n) => form.subnet(address?, n),
+            Err(message) => {
+                self.error(Diagnostic::new(bits, message));
+                None
             }
         }
     }
