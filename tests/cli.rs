@@ -198,15 +198,38 @@ fn ast_prints_header_and_tree_and_skips_semantics() {
 #[test]
 fn golden_ast_through_the_binary() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let out = run_in(
-        root,
-        &["--ast", "--config", "tests/data/config/everything.conf"],
-        &[],
+    for name in ["everything", "queue"] {
+        let conf = format!("tests/data/config/{name}.conf");
+        let out = run_in(root, &["--ast", "--config", &conf], &[]);
+        assert_eq!(out.status.code(), Some(0), "{name}");
+        let want = std::fs::read_to_string(root.join(format!("tests/data/config/{name}.ast")))
+            .expect("golden");
+        assert_eq!(text(&out.stdout), want, "{name}");
+    }
+}
+
+#[test]
+fn check_validates_the_queue_block() {
+    let dir = scratch("queue");
+    std::fs::write(
+        dir.join("q.conf"),
+        "queue {\n    link_bytes 8192;\n    total_bytes 4096;\n}\nchain default { accept; }\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--check", "--config", "q.conf"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        text(&out.stderr),
+        "q.conf:3:17: total_bytes (4096) must be at least link_bytes (8192)\n    total_bytes 4096;\n                ^^^^\n\
+         note: all queues together need room for at least one full link queue\n"
     );
-    assert_eq!(out.status.code(), Some(0));
-    let want =
-        std::fs::read_to_string(root.join("tests/data/config/everything.ast")).expect("golden");
-    assert_eq!(text(&out.stdout), want);
+    std::fs::write(
+        dir.join("ok.conf"),
+        "queue { link_bytes 8192; }\nchain default { accept; }\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--check", "--config", "ok.conf"], &[]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
 }
 
 #[test]

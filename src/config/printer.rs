@@ -88,6 +88,16 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::Queue { keyword, settings } => {
+                self.node(0, *keyword, "queue", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        QueueSetting::LinkBytes(v) => ("link_bytes", *v),
+                        QueueSetting::TotalBytes(v) => ("total_bytes", *v),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {

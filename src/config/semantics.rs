@@ -3,7 +3,8 @@
 //! finds (in file order) rather than stopping at the first.
 
 use super::ast::{
-    self, ActionAst, AddressAst, Ast, Item, MaskAst, SerialSetting, SubnetAst, UdpSetting,
+    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst,
+    UdpSetting,
 };
 use super::diagnostic::{Diagnostic, Position};
 use super::model::*;
@@ -38,6 +39,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     // socket or device.
     let mut udp_seen: Vec<(Ipv4Addr, u16, usize)> = Vec::new();
     let mut serial_seen: Vec<(String, usize)> = Vec::new();
+    let mut queue = QueueBounds::default();
+    // Line of the first `queue` block: a second one is an error.
+    let mut queue_line: Option<usize> = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -65,6 +69,22 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                 if let Some(serial) = cx.serial(*keyword, settings) {
                     cx.no_shared_device(*keyword, &serial, &mut serial_seen);
                     interfaces.push(Interface::Serial(serial));
+                }
+            }
+            Item::Queue { keyword, settings } => {
+                if let Some(first) = queue_line {
+                    cx.error(
+                        Diagnostic::new(*keyword, "only one 'queue' block is allowed").with_note(
+                            format!(
+                                "the first 'queue' block is on line {first}; give both bounds there"
+                            ),
+                        ),
+                    );
+                }
+                let bounds = cx.queue(settings);
+                if queue_line.is_none() {
+                    queue_line = Some(cx.line(*keyword));
+                    queue = bounds.unwrap_or_default();
                 }
             }
             Item::Chain { name, rules } => {
@@ -105,6 +125,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             interfaces,
             chains,
             default_chain,
+            queue,
         },
         warnings,
     })
@@ -241,6 +262,62 @@ impl<'a> Checker<'a, '_> {
             );
         }
         seen.push((serial.device.clone(), line));
+    }
+
+    /// The bounds of a `queue` block; every bad value is reported.
+    fn queue(&mut self, settings: &[QueueSetting]) -> Option<QueueBounds> {
+        let mut bounds = QueueBounds::default();
+        let mut total_at = None;
+        let mut ok = true;
+        for s in settings {
+            let (span, name, slot) = match s {
+                QueueSetting::LinkBytes(v) => (*v, "link_bytes", &mut bounds.link_bytes),
+                QueueSetting::TotalBytes(v) => {
+                    total_at = Some(*v);
+                    (*v, "total_bytes", &mut bounds.total_bytes)
+                }
+            };
+            match self.queue_bytes(span, name) {
+                Some(bytes) => *slot = Some(bytes),
+                None => ok = false,
+            }
+        }
+        if let (Some(link), Some(total), Some(at)) =
+            (bounds.link_bytes, bounds.total_bytes, total_at)
+            && total < link
+        {
+            self.error(
+                Diagnostic::new(
+                    at,
+                    format!("total_bytes ({total}) must be at least link_bytes ({link})"),
+                )
+                .with_note("all queues together need room for at least one full link queue"),
+            );
+            ok = false;
+        }
+        ok.then_some(bounds)
+    }
+
+    /// A queue bound in bytes, from one largest frame with its bookkeeping up to 2^40.
+    fn queue_bytes(&mut self, span: Span, name: &str) -> Option<usize> {
+        let (min, max) = (QueueBounds::MIN_BYTES, QueueBounds::MAX_BYTES);
+        let max = max.min(u64::try_from(usize::MAX).unwrap_or(u64::MAX));
+        let text = self.text(span);
+        match text.parse::<u64>() {
+            Ok(v) if (min..=max).contains(&v) => usize::try_from(v).ok(),
+            _ => {
+                self.error(
+                    Diagnostic::new(
+                        span,
+                        format!("{name} ({text}) is outside of the allowed range ({min} - {max})"),
+                    )
+                    .with_note(
+                        "a queue needs room for one largest frame (280 bytes) and its 32 bytes of bookkeeping; the most is 2^40 bytes",
+                    ),
+                );
+                None
+            }
+        }
     }
 
     fn serial(&mut self, keyword: Span, settings: &[SerialSetting]) -> Option<SerialInterface> {

@@ -144,7 +144,7 @@ impl Evaluator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{ChainId, Condition, Rule};
+    use crate::config::{ChainId, Condition, QueueBounds, Rule};
 
     const HEARTBEAT: u32 = 0;
     const PING: u32 = 4;
@@ -256,6 +256,7 @@ mod tests {
                 },
             ],
             default_chain: ChainId(0),
+            queue: QueueBounds::default(),
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -286,6 +287,7 @@ mod tests {
                 rules: vec![rule(Action::Call(ChainId(7)))],
             }],
             default_chain: ChainId(3),
+            queue: QueueBounds::default(),
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
