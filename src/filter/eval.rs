@@ -1,9 +1,9 @@
 //! Walks the chains of a [`Config`] for one (message id, source, destination) triple.
 //!
-//! Semantics (spec §2): rules run in order and the first that decides wins; a rule whose
-//! condition fails continues. `call X` returns X's result as-is, so an undecided X falls
-//! through to the caller's next rule; `goto X` turns an undecided X into "default", which
-//! ends evaluation with the default action. A priority on `call`/`goto` is attached only
+//! The original mavtables' semantics: rules run in order and the first that decides
+//! wins; a rule whose condition fails continues. `call X` returns X's result as-is, so
+//! an undecided X falls through to the caller's next rule; `goto X` turns an undecided X
+//! into "default", which ends evaluation with the default action. A priority on `call`/`goto` is attached only
 //! to an accept that has none yet (innermost explicit priority wins). Unset priority is 0.
 //!
 //! The walk uses an explicit stack, never recursion, and gives up with
