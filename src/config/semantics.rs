@@ -6,7 +6,8 @@ use super::ast::{
     self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst,
     UdpSetting,
 };
-use super::diagnostic::{Diagnostic, Position};
+use super::diagnostic::Diagnostic;
+use super::lines::LineIndex;
 use super::model::*;
 use super::{Span, suggest};
 use crate::address::{Address, PrefixMask, Subnet};
@@ -31,6 +32,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
         ids: HashMap::new(),
         names: Vec::new(),
         edges: Vec::new(),
+        lines: LineIndex::new(ast.src),
     };
     cx.register_chains();
     let mut default_action = DefaultAction::Reject;
@@ -145,6 +147,7 @@ struct Checker<'a, 'b> {
     ids: HashMap<&'a str, ChainId>,
     names: Vec<(&'a str, Span)>,
     edges: Vec<Edge>,
+    lines: LineIndex,
 }
 
 impl<'a> Checker<'a, '_> {
@@ -157,7 +160,7 @@ impl<'a> Checker<'a, '_> {
     }
 
     fn line(&self, span: Span) -> usize {
-        Position::of(self.ast.src, span.start).line
+        self.lines.line_of(span.start)
     }
 
     /// Every chain name first, so chains can be used before their definition.
