@@ -1,8 +1,8 @@
 //! The main command's options, as the original mavtables had them (read by the shared
-//! [`super::options`] reader): positional arguments are ignored, and `--config` and
+//! [`super::arg_reader`] reader): positional arguments are ignored, and `--config` and
 //! `--loglevel` may be given once.
 
-use super::options::{Arg, ArgReader, OptionSpec};
+use super::arg_reader::{Arg, ArgReader, OptionSpec};
 
 /// Options understood on the command line.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]

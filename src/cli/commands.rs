@@ -1,11 +1,11 @@
 //! The command lines of the `inspect` and `replay` subcommands (read by the shared
-//! [`super::options`] reader, so they follow the same rules as the main command) and
+//! [`super::arg_reader`] reader, so they follow the same rules as the main command) and
 //! the texts they print.
 
 use std::io::{IsTerminal, Write};
 
 use super::Outcome;
-use super::options::{Arg, ArgReader, OptionSpec};
+use super::arg_reader::{Arg, ArgReader, OptionSpec};
 use crate::address::Subnet;
 use crate::commands::inspect::{self, Options};
 use crate::commands::replay::{self, ProgressBar, Speed, Target};

@@ -1,10 +1,10 @@
-//! Command-line interface of the `mavtables` binary: options (one reader, [`options`],
+//! Command-line interface of the `mavtables` binary: options (one reader, [`arg_reader`],
 //! for the main command and its subcommands), finding and loading the configuration,
 //! `--ast`, `--check`, and dispatching to the `inspect` and `replay` subcommands.
 
+pub mod arg_reader;
 mod args;
 mod commands;
-pub mod options;
 mod run;
 mod search;
 mod text;
