@@ -35,4 +35,4 @@ impl fmt::Display for Address {
 }
 
 mod subnet;
-pub use subnet::{Subnet, SubnetParseError};
+pub use subnet::{PrefixMask, Subnet, SubnetParseError};

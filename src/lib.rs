@@ -8,7 +8,8 @@
 //! - [`filter`]: the filter chains;
 //! - [`routing`]: the sans-IO routing core (learning, decisions, queues, pacing);
 //! - [`io`]: the event loop and the UDP / serial drivers;
-//! - [`cli`]: the command line; [`tools`]: `inspect` and `replay`;
+//! - [`cli`]: the command line; [`commands`]: the `inspect` and `replay` subcommands;
+//! - [`utc`]: UTC calendar formatting of timestamps (logs and `inspect`);
 //! - [`address`]: MAVLink addresses and subnets.
 
 // Every public item says what it is for (CI turns this warning into an error).
@@ -19,10 +20,11 @@
 pub mod address;
 pub mod capture;
 pub mod cli;
+pub mod commands;
 pub mod config;
 pub mod dialect;
 pub mod filter;
 pub mod io;
 pub mod routing;
-pub mod tools;
+pub mod utc;
 pub mod wire;

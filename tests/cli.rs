@@ -62,6 +62,13 @@ fn help_and_version() {
         ] {
             assert!(stdout.contains(&format!("\n  {opt} ")), "{opt} missing");
         }
+        for line in [
+            "\n  inspect FILE...  ",
+            "\n  replay FILE --to ...  ",
+            "'mavtables SUBCOMMAND --help'",
+        ] {
+            assert!(stdout.contains(line), "{line} missing from\n{stdout}");
+        }
         assert!(stdout.ends_with("\n\n"));
     }
     let out = run_in(&dir, &["--ver"], &[]);
@@ -191,15 +198,38 @@ fn ast_prints_header_and_tree_and_skips_semantics() {
 #[test]
 fn golden_ast_through_the_binary() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let out = run_in(
-        root,
-        &["--ast", "--config", "tests/data/config/everything.conf"],
-        &[],
+    for name in ["everything", "queue"] {
+        let conf = format!("tests/data/config/{name}.conf");
+        let out = run_in(root, &["--ast", "--config", &conf], &[]);
+        assert_eq!(out.status.code(), Some(0), "{name}");
+        let want = std::fs::read_to_string(root.join(format!("tests/data/config/{name}.ast")))
+            .expect("golden");
+        assert_eq!(text(&out.stdout), want, "{name}");
+    }
+}
+
+#[test]
+fn check_validates_the_queue_block() {
+    let dir = scratch("queue");
+    std::fs::write(
+        dir.join("q.conf"),
+        "queue {\n    link_bytes 8192;\n    total_bytes 4096;\n}\nchain default { accept; }\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--check", "--config", "q.conf"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        text(&out.stderr),
+        "q.conf:3:17: total_bytes (4096) must be at least link_bytes (8192)\n    total_bytes 4096;\n                ^^^^\n\
+         note: all queues together need room for at least one full link queue\n"
     );
-    assert_eq!(out.status.code(), Some(0));
-    let want =
-        std::fs::read_to_string(root.join("tests/data/config/everything.ast")).expect("golden");
-    assert_eq!(text(&out.stdout), want);
+    std::fs::write(
+        dir.join("ok.conf"),
+        "queue { link_bytes 8192; }\nchain default { accept; }\n",
+    )
+    .expect("write");
+    let out = run_in(&dir, &["--check", "--config", "ok.conf"], &[]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
 }
 
 #[test]
@@ -270,4 +300,56 @@ fn running_loads_and_validates_first() {
     let out = run_in(&dir, &["--config", "bad.conf", "--loglevel", "9"], &[]);
     assert_eq!(out.status.code(), Some(1));
     assert!(text(&out.stderr).starts_with("bad.conf:1:12: port number (65536) is outside"));
+}
+
+#[test]
+fn subcommands_read_options_like_the_main_command() {
+    let dir = scratch("subcommands");
+    for args in [
+        &["inspect", "-h"][..],
+        &["inspect", "--he"],
+        &["replay", "--help"],
+    ] {
+        let out = run_in(&dir, args, &[]);
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+        let want = format!("usage: mavtables {} ", args[0]);
+        assert!(text(&out.stdout).starts_with(&want), "{args:?}");
+    }
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &["inspect", "--bogus", "f"],
+            "unrecognised option '--bogus'",
+        ),
+        (
+            &["inspect", "--from"],
+            "the required argument for option '--from' is missing",
+        ),
+        (
+            &["inspect", "--json=yes", "f"],
+            "option '--json' does not take any arguments",
+        ),
+        // Subnets on the command line are read by the config language's mask rules.
+        (
+            &["inspect", "--from", "1.1/17", "f"],
+            "Forward slash mask (17) is outside of allowed range (0 - 16).",
+        ),
+        (
+            &["inspect", "--to=1.1\\9", "f"],
+            "Backslash mask (9) is outside of allowed range (0 - 8).",
+        ),
+        (
+            &["replay", "f", "--speed"],
+            "the required argument for option '--speed' is missing",
+        ),
+        // A unique prefix and `=` work as for the main command.
+        (
+            &["replay", "missing.cap", "--sp=2", "--t", "udp:127.0.0.1:9"],
+            "cannot read missing.cap: No such file or directory (os error 2)",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = run_in(&dir, args, &[]);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        assert_eq!(text(&out.stderr), format!("error: {want}\n"), "{args:?}");
+    }
 }

@@ -19,6 +19,26 @@ fn golden_file_with_every_form() {
 }
 
 #[test]
+fn golden_file_with_queue_blocks() {
+    let path = "tests/data/config/queue.conf";
+    let src = std::fs::read_to_string(path).expect("fixture");
+    let want = std::fs::read_to_string("tests/data/config/queue.ast").expect("golden");
+    let ast = parse(&src).expect("fixture parses");
+    assert_eq!(print_ast(&ast, path), want);
+}
+
+#[test]
+fn queue_block_prints_like_udp() {
+    for src in ["queue {}", "queue\n{\n}"] {
+        assert_eq!(tree(src), ":001:  queue\n");
+    }
+    assert_eq!(
+        tree("queue {\n    link_bytes 4096;\n    total_bytes\n  08192;\n}"),
+        ":001:  queue\n:002:  |  link_bytes 4096\n:004:  |  total_bytes 08192\n"
+    );
+}
+
+#[test]
 fn global_statements_and_empty_blocks() {
     assert_eq!(
         tree("default_action accept;"),

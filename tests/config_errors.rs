@@ -368,3 +368,55 @@ fn two_interfaces_on_one_port_or_device() {
     assert!(text.contains("serial { device /dev/ttyS0; }"), "{text}");
     assert!(text.contains("one serial block only"), "{text}");
 }
+
+#[test]
+fn queue_block() {
+    check("queue", "1:6: expected opening brace '{'");
+    check("queue {", "1:8: expected closing brace '}'");
+    check(
+        "queue { link_bytes; }",
+        "1:19: expected a valid number of bytes",
+    );
+    check(
+        "queue { total_bytes -1; }",
+        "1:21: expected a valid number of bytes",
+    );
+    check(
+        "queue { link_bytes 4096 }",
+        "1:25: expected end of statement ';' character",
+    );
+    check(
+        "queue {\n    link_bytes 4096\n}",
+        "2:20: expected end of statement ';' character",
+    );
+    check("queue { port 1; }", "1:9: unsupported statement");
+    check(
+        "queue { link_bytes 311; }",
+        "1:20: link_bytes (311) is outside of the allowed range (312 - 1099511627776)",
+    );
+    check(
+        "queue { total_bytes 1099511627777; }",
+        "1:21: total_bytes (1099511627777) is outside of the allowed range (312 - 1099511627776)",
+    );
+    check(
+        "queue { total_bytes 99999999999999999999999; }",
+        "1:21: total_bytes (99999999999999999999999) is outside of the allowed range (312 - 1099511627776)",
+    );
+    check(
+        "queue { total_bytes 4096; link_bytes 8192; }",
+        "1:21: total_bytes (4096) must be at least link_bytes (8192)",
+    );
+    check(
+        "queue { link_bytes 4096; }\nudp {}\nqueue {}",
+        "3:1: only one 'queue' block is allowed",
+    );
+    assert!(all("queue {}\nqueue {}").contains("note: the first 'queue' block is on line 1"),);
+    assert!(
+        all("queue { link_bytes 1; }")
+            .contains("note: a queue needs room for one largest frame (280 bytes)")
+    );
+    assert!(all("queue { linkbytes 1; }").contains("note: did you mean 'link_bytes'?"));
+    assert!(
+        all("udp { total_bytes 4096; }").contains("note: 'total_bytes' belongs in a 'queue' block")
+    );
+}

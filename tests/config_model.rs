@@ -2,8 +2,8 @@
 
 use mavtables::address::{Address, Subnet};
 use mavtables::config::{
-    Action, ChainId, Condition, Config, DefaultAction, Interface, SerialInterface, UdpInterface,
-    load,
+    Action, ChainId, Condition, Config, DefaultAction, Interface, QueueBounds, SerialInterface,
+    UdpInterface, load,
 };
 use std::net::Ipv4Addr;
 
@@ -206,4 +206,37 @@ fn unknown_names_get_close_real_suggestions() {
         "{text}"
     );
     assert!(text.contains("'PING'"), "{text}");
+}
+
+#[test]
+fn queue_bounds() {
+    // No block, or an empty one: the routing core's defaults.
+    for src in ["chain default {}", "queue {}\nchain default {}"] {
+        assert_eq!(config(src).queue, QueueBounds::default());
+    }
+    let c = config("queue {\n    link_bytes 4194304;\n    total_bytes 33554432;\n}");
+    assert_eq!(
+        c.queue,
+        QueueBounds {
+            link_bytes: Some(4_194_304),
+            total_bytes: Some(33_554_432)
+        }
+    );
+    // Each statement alone; the smallest and largest values; the last of a repeat counts.
+    let c = config("queue { link_bytes 0312; }");
+    assert_eq!(c.queue.link_bytes, Some(312));
+    assert_eq!(c.queue.total_bytes, None);
+    let c = config("queue { total_bytes 400; total_bytes 1000; }");
+    assert_eq!(c.queue.total_bytes, Some(1000));
+    assert_eq!(c.queue.link_bytes, None);
+    #[cfg(target_pointer_width = "64")]
+    assert_eq!(
+        config("queue { total_bytes 1099511627776; }")
+            .queue
+            .total_bytes,
+        Some(1 << 40)
+    );
+    // Equal bounds are allowed.
+    let c = config("queue { link_bytes 5000; total_bytes 5000; }");
+    assert_eq!(c.queue.total_bytes, Some(5000));
 }

@@ -11,6 +11,9 @@ fuzz_target!(|data: &[u8]| {
         Ok(loaded) => {
             let c = loaded.config;
             assert!(c.default_chain.0 < c.chains.len());
+            if let (Some(link), Some(total)) = (c.queue.link_bytes, c.queue.total_bytes) {
+                assert!(total >= link);
+            }
         }
         Err(errors) => {
             assert!(!errors.is_empty());

@@ -67,6 +67,56 @@ impl Subnet {
     }
 }
 
+/// The two short mask forms, which count leading bits: `S.C/bits` over the whole
+/// 16-bit address and `S.C\bits` over the component only. The configuration language
+/// and the command-line options read the bit count here, so both accept the same values
+/// and give the same error texts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PrefixMask {
+    /// `/bits`: the leftmost 0–16 bits of the whole address must match.
+    Slash,
+    /// `\bits`: the system is ignored; the leftmost 0–8 bits of the component must match.
+    Backslash,
+}
+
+impl PrefixMask {
+    /// The largest bit count this form allows.
+    pub const fn max_bits(self) -> u8 {
+        match self {
+            PrefixMask::Slash => 16,
+            PrefixMask::Backslash => 8,
+        }
+    }
+
+    /// The bit count written after the `/` or `\` (decimal digits only), or the error
+    /// text to show for it, e.g. `Forward slash mask (17) is outside of allowed range
+    /// (0 - 16).` (the original mavtables' wording).
+    pub fn bits(self, text: &str) -> Result<u8, String> {
+        let max = self.max_bits();
+        match text.parse::<u8>() {
+            Ok(n) if n <= max && text.bytes().all(|b| b.is_ascii_digit()) => Ok(n),
+            _ => {
+                let name = match self {
+                    PrefixMask::Slash => "Forward slash",
+                    PrefixMask::Backslash => "Backslash",
+                };
+                Err(format!(
+                    "{name} mask ({text}) is outside of allowed range (0 - {max})."
+                ))
+            }
+        }
+    }
+
+    /// The subnet of `address` under `bits` of this form; `None` when `bits` is above
+    /// [`PrefixMask::max_bits`].
+    pub const fn subnet(self, address: Address, bits: u8) -> Option<Subnet> {
+        match self {
+            PrefixMask::Slash => Subnet::with_prefix(address, bits),
+            PrefixMask::Backslash => Subnet::with_component_prefix(address, bits),
+        }
+    }
+}
+
 /// Why a subnet written on the command line could not be read.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SubnetParseError(pub String);
@@ -81,45 +131,37 @@ impl std::error::Error for SubnetParseError {}
 
 /// Parses `S.C` as two octets.
 fn octets(text: &str, whole: &str) -> Result<Address, SubnetParseError> {
-    let invalid = || SubnetParseError(format!("Invalid MAVLink subnet: \"{whole}\"."));
-    let (s, c) = text.split_once('.').ok_or_else(invalid)?;
+    let (s, c) = text.split_once('.').ok_or_else(|| invalid(whole))?;
     let num = |t: &str| -> Result<u8, SubnetParseError> {
         if t.is_empty() || !t.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(invalid());
+            return Err(invalid(whole));
         }
-        t.parse::<u8>().map_err(|_| invalid())
+        t.parse::<u8>().map_err(|_| invalid(whole))
     };
     Ok(Address::new(num(s)?, num(c)?))
 }
 
+/// The error for a subnet that is not one of the four written forms.
+fn invalid(whole: &str) -> SubnetParseError {
+    SubnetParseError(format!("Invalid MAVLink subnet: \"{whole}\"."))
+}
+
 /// The four written forms of the configuration language, for command-line options:
-/// `S.C`, `S.C:M.M`, `S.C/bits` (0–16) and `S.C\\bits` (0–8).
+/// `S.C`, `S.C:M.M`, `S.C/bits` (0–16) and `S.C\bits` (0–8).
 impl std::str::FromStr for Subnet {
     type Err = SubnetParseError;
 
     fn from_str(text: &str) -> Result<Self, Self::Err> {
-        let bits = |b: &str, max: u8, kind: &str| -> Result<u8, SubnetParseError> {
-            match b.parse::<u8>() {
-                Ok(n) if n <= max && !b.is_empty() && b.bytes().all(|c| c.is_ascii_digit()) => {
-                    Ok(n)
-                }
-                _ => Err(SubnetParseError(format!(
-                    "{kind} mask ({b}) is outside of allowed range (0 - {max})."
-                ))),
-            }
-        };
         if let Some((addr, mask)) = text.split_once(':') {
             return Ok(Subnet::new(octets(addr, text)?, octets(mask, text)?));
         }
-        if let Some((addr, b)) = text.split_once('/') {
-            let n = bits(b, 16, "Forward slash")?;
-            return Subnet::with_prefix(octets(addr, text)?, n)
-                .ok_or_else(|| SubnetParseError(format!("Invalid MAVLink subnet: \"{text}\".")));
-        }
-        if let Some((addr, b)) = text.split_once('\\') {
-            let n = bits(b, 8, "Backslash")?;
-            return Subnet::with_component_prefix(octets(addr, text)?, n)
-                .ok_or_else(|| SubnetParseError(format!("Invalid MAVLink subnet: \"{text}\".")));
+        for (separator, form) in [('/', PrefixMask::Slash), ('\\', PrefixMask::Backslash)] {
+            if let Some((addr, bits)) = text.split_once(separator) {
+                let bits = form.bits(bits).map_err(SubnetParseError)?;
+                return form
+                    .subnet(octets(addr, text)?, bits)
+                    .ok_or_else(|| invalid(text));
+            }
         }
         Ok(Subnet::exact(octets(text, text)?))
     }
@@ -221,6 +263,14 @@ mod tests {
             p("1.1/17").map_err(|e| e.0),
             Err("Forward slash mask (17) is outside of allowed range (0 - 16).".into())
         );
-        assert!(p("1.1\\9").is_err() && p("").is_err() && p("1").is_err() && p("1.+1").is_err());
+        assert_eq!(
+            p("1.1\\9").map_err(|e| e.0),
+            Err("Backslash mask (9) is outside of allowed range (0 - 8).".into())
+        );
+        assert_eq!(
+            p("1.1/+3").map_err(|e| e.0),
+            Err("Forward slash mask (+3) is outside of allowed range (0 - 16).".into())
+        );
+        assert!(p("").is_err() && p("1").is_err() && p("1.+1").is_err());
     }
 }

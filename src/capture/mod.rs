@@ -2,7 +2,7 @@
 //! `.pcap` / `.pcapng` packet captures (MAVLink in UDP). Pure parsers over byte slices;
 //! callers read the files. The format is told from the content, not the file name.
 
-pub mod link;
+pub mod linktype;
 pub mod pcap;
 pub mod pcapng;
 pub mod tlog;

@@ -1,7 +1,7 @@
 //! Classic libpcap files (`.pcap`): the UDP payloads they carry (link types as in
-//! [`super::link`]). Non-UDP packets are passed over and counted.
+//! [`super::linktype`]). Non-UDP packets are passed over and counted.
 
-use super::link;
+use super::linktype;
 
 const GLOBAL_HEADER_LEN: usize = 24;
 const RECORD_HEADER_LEN: usize = 16;
@@ -90,7 +90,7 @@ impl<'a> Reader<'a> {
             failed: false,
         };
         r.link_type = r.u32_at(20) & 0x0fff_ffff;
-        if link::supported(r.link_type) {
+        if linktype::supported(r.link_type) {
             Ok(r)
         } else {
             Err(PcapError::UnsupportedLinkType(r.link_type))
@@ -132,7 +132,7 @@ impl<'a> Iterator for Reader<'a> {
             };
             self.pos = start + incl;
             let timestamp_us = secs * 1_000_000 + if self.nanos { frac / 1000 } else { frac };
-            match link::udp_payload(self.link_type, frame) {
+            match linktype::udp_payload(self.link_type, frame) {
                 Some(udp) => {
                     return Some(Ok(Datagram {
                         timestamp_us,

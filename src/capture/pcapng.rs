@@ -1,8 +1,8 @@
 //! pcapng files (Wireshark's default format): the UDP payloads of their Enhanced and
-//! Simple Packet Blocks (link types as in [`super::link`]). Other blocks, other
+//! Simple Packet Blocks (link types as in [`super::linktype`]). Other blocks, other
 //! protocols and interfaces of unknown link types are passed over and counted.
 
-use super::link;
+use super::linktype;
 use super::pcap::{Datagram, PcapError};
 
 const SHB: u32 = 0x0A0D_0D0A;
@@ -172,7 +172,7 @@ impl<'a> Iterator for Reader<'a> {
                     let found =
                         self.packet(kind, body, end)
                             .and_then(|(iface, ts, frame, start)| {
-                                let udp = link::udp_payload(iface.link_type, frame)?;
+                                let udp = linktype::udp_payload(iface.link_type, frame)?;
                                 let timestamp_us = u64::try_from(
                                     u128::from(ts) * 1_000_000
                                         / u128::from(iface.units_per_sec.max(1)),
@@ -217,7 +217,7 @@ mod tests {
         let mut shb = BYTE_ORDER_MAGIC.to_le_bytes().to_vec();
         shb.extend([1, 0, 0, 0]);
         shb.extend(u64::MAX.to_le_bytes());
-        let mut idb = (link::DLT_RAW as u16).to_le_bytes().to_vec();
+        let mut idb = (linktype::DLT_RAW as u16).to_le_bytes().to_vec();
         idb.extend([0, 0, 0, 0, 0, 0]);
         let total = 28 + payload.len();
         let mut ip = vec![

@@ -1,6 +1,8 @@
-//! Command-line options, parsed the way the original mavtables (boost::program_options)
-//! did: `--name value` or `--name=value`, unique prefixes of long names (`--conf`),
-//! positional arguments ignored, and the same error texts.
+//! The main command's options, as the original mavtables had them (read by the shared
+//! [`super::arg_reader`] reader): positional arguments are ignored, and `--config` and
+//! `--loglevel` may be given once.
+
+use super::arg_reader::{Arg, ArgReader, OptionSpec};
 
 /// Options understood on the command line.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
@@ -19,64 +21,29 @@ pub struct Options {
     pub loglevel: u8,
 }
 
-#[derive(Clone, Copy, PartialEq)]
-enum Takes {
-    Nothing,
-    Value,
-}
-
 /// The original's long options, in the order prefixes are resolved against.
-const ORIGINAL: &[(&str, Takes)] = &[
-    ("help", Takes::Nothing),
-    ("config", Takes::Value),
-    ("ast", Takes::Nothing),
-    ("version", Takes::Nothing),
-    ("loglevel", Takes::Value),
+const ORIGINAL: &[OptionSpec] = &[
+    OptionSpec::flag("help"),
+    OptionSpec::value("config"),
+    OptionSpec::flag("ast"),
+    OptionSpec::flag("version"),
+    OptionSpec::value("loglevel"),
 ];
 
 /// Our additions. A prefix is matched against these only when it matches none of the
 /// original options, so every abbreviation that worked before (`--c` = `--config`) still
 /// means the same thing.
-const ADDED: &[(&str, Takes)] = &[("check", Takes::Nothing)];
+const ADDED: &[OptionSpec] = &[OptionSpec::flag("check")];
 
 /// Parses the command line (without the program name).
 pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, String> {
     let mut opts = Options::default();
     let mut loglevel_seen = false;
-    let mut it = args.into_iter();
-    while let Some(arg) = it.next() {
-        if arg == "--" {
-            break; // everything after is positional, and positional arguments are ignored
-        }
-        if arg == "-h" {
-            opts.help = true;
+    let mut reader = ArgReader::new(args, &[ORIGINAL, ADDED]);
+    while let Some(arg) = reader.next_arg()? {
+        // Positional arguments are ignored, as the original did.
+        let Arg::Option { name, value } = arg else {
             continue;
-        }
-        let Some(body) = arg.strip_prefix("--") else {
-            if arg.starts_with('-') && arg.len() > 1 {
-                return Err(format!("unrecognised option '{arg}'"));
-            }
-            continue; // positional: ignored, as the original did
-        };
-        let (given, inline) = match body.split_once('=') {
-            Some((n, v)) => (n, Some(v.to_string())),
-            None => (body, None),
-        };
-        let (name, takes) = resolve(given)?;
-        let value = match (takes, inline) {
-            (Takes::Nothing, Some(_)) => {
-                return Err(format!("option '--{name}' does not take any arguments"));
-            }
-            (Takes::Nothing, None) => None,
-            (Takes::Value, Some(v)) => Some(v),
-            (Takes::Value, None) => match it.next() {
-                Some(v) if !(v.starts_with('-') && v.len() > 1) => Some(v),
-                _ => {
-                    return Err(format!(
-                        "the required argument for option '--{name}' is missing"
-                    ));
-                }
-            },
         };
         match (name, value) {
             ("help", _) => opts.help = true,
@@ -102,32 +69,6 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, String>
         }
     }
     Ok(opts)
-}
-
-/// The full option name for `given` (a full name or a unique prefix).
-fn resolve(given: &str) -> Result<(&'static str, Takes), String> {
-    for table in [ORIGINAL, ADDED] {
-        if let Some(&(name, takes)) = table.iter().find(|(n, _)| *n == given) {
-            return Ok((name, takes));
-        }
-    }
-    if !given.is_empty() {
-        for table in [ORIGINAL, ADDED] {
-            let found: Vec<_> = table.iter().filter(|(n, _)| n.starts_with(given)).collect();
-            match found.as_slice() {
-                [] => {}
-                [one] => return Ok((one.0, one.1)),
-                many => {
-                    let names: Vec<String> = many.iter().map(|(n, _)| format!("'--{n}'")).collect();
-                    return Err(format!(
-                        "option '--{given}' is ambiguous and matches {}",
-                        names.join(", ")
-                    ));
-                }
-            }
-        }
-    }
-    Err(format!("unrecognised option '--{given}'"))
 }
 
 #[cfg(test)]

@@ -1,14 +1,16 @@
-//! Command-line interface of the `mavtables` binary: options, finding and loading the
-//! configuration, `--ast` and `--check`.
+//! Command-line interface of the `mavtables` binary: options (one reader, [`arg_reader`],
+//! for the main command and its subcommands), finding and loading the configuration,
+//! `--ast`, `--check`, and dispatching to the `inspect` and `replay` subcommands.
 
+pub mod arg_reader;
 mod args;
+mod commands;
 mod run;
 mod search;
 mod text;
-mod tools;
 
 pub use args::{Options, parse};
+pub use commands::run_subcommand;
 pub use run::{Outcome, run};
 pub use search::find_config;
 pub use text::{help, version};
-pub use tools::run_tool;

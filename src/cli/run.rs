@@ -26,7 +26,7 @@ pub enum Outcome {
 pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outcome {
     if let Some(outcome) = args
         .get(1..)
-        .and_then(|rest| super::run_tool(rest, out, err))
+        .and_then(|rest| super::run_subcommand(rest, out, err))
     {
         return outcome;
     }

@@ -1,6 +1,7 @@
 //! The fixed texts of `--help` and `--version`.
 
-/// The `--help` text; the first line names the program as it was invoked.
+/// The `--help` text: the original's option list (the first line names the program as it
+/// was invoked), then the subcommands and how to get their own help.
 pub fn help(argv0: &str) -> String {
     format!(
         "usage: {argv0}:\n\
@@ -10,6 +11,10 @@ pub fn help(argv0: &str) -> String {
          \x20 --check               check the configuration (syntax and meaning) and exit\n\
          \x20 --version             show version and license and exit\n\
          \x20 --loglevel arg        how much to log, from 0 (nothing) to 3 (every packet)\n\
+         \n\
+         subcommands ('mavtables SUBCOMMAND --help' shows a subcommand's options):\n\
+         \x20 inspect FILE...       list, decode, summarise or check the frames of captures\n\
+         \x20 replay FILE --to ...  send a capture's frames to a UDP or serial link\n\
          \n"
     )
 }

@@ -46,6 +46,13 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<SerialSetting>,
     },
+    /// `queue { ... }`: bounds of the outgoing packet queues.
+    Queue {
+        /// The `queue` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<QueueSetting>,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.
@@ -69,6 +76,15 @@ pub enum UdpSetting {
     },
     /// `max_bitrate N;`
     MaxBitrate(Span),
+}
+
+/// A statement of a `queue` block; each span covers the value (a number of bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum QueueSetting {
+    /// `link_bytes N;`: what one link's queue may hold.
+    LinkBytes(Span),
+    /// `total_bytes N;`: what all queues together may hold.
+    TotalBytes(Span),
 }
 
 /// A statement of a `serial` block; each span covers the value.

@@ -2,6 +2,7 @@
 //! line under the position, followed by optional notes.
 
 use super::Span;
+use super::lines::LineIndex;
 use std::fmt;
 
 /// A located error in a configuration file.
@@ -86,14 +87,20 @@ impl Position {
     /// The position of byte `offset` in `src` (clamped to the end, moved back to a character
     /// boundary if needed).
     pub fn of(src: &str, offset: usize) -> Position {
+        Position::in_index(&LineIndex::new(src), src, offset)
+    }
+
+    /// Like [`Position::of`], with the line starts of `src` already indexed (for many
+    /// lookups in one source).
+    pub fn in_index(lines: &LineIndex, src: &str, offset: usize) -> Position {
         let mut offset = offset.min(src.len());
         while !src.is_char_boundary(offset) {
             offset -= 1;
         }
-        let before = &src[..offset];
-        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        let line = lines.line_of(offset);
+        let line_start = lines.line_start(line);
         Position {
-            line: before.matches('\n').count() + 1,
+            line,
             column: src[line_start..offset].chars().count() + 1,
             line_start,
             byte_in_line: offset - line_start,

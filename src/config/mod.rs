@@ -7,6 +7,7 @@
 pub mod ast;
 pub mod diagnostic;
 pub mod lexer;
+pub mod lines;
 pub mod model;
 pub mod parser;
 pub mod printer;
@@ -14,6 +15,7 @@ pub mod semantics;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
+pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};

@@ -14,6 +14,8 @@ pub struct Config {
     pub chains: Vec<Chain>,
     /// The chain every packet starts in (`default`; empty when the file has none).
     pub default_chain: ChainId,
+    /// How many bytes the outgoing queues may hold (the `queue` block).
+    pub queue: QueueBounds,
 }
 
 impl Config {
@@ -79,6 +81,27 @@ pub struct SerialInterface {
     pub flow_control: bool,
     /// Addresses known to be reachable on this port before they send anything.
     pub preload: Vec<Address>,
+}
+
+/// The `queue { link_bytes N; total_bytes N; }` block: how many bytes of packets (each
+/// counted with its bookkeeping) may wait to be sent. `None` leaves the routing core's
+/// default: 4 MiB per link, 32 MiB in all. When a queue is full, the lowest-priority,
+/// oldest packet is dropped and counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct QueueBounds {
+    /// What one link's queue may hold.
+    pub link_bytes: Option<usize>,
+    /// What all queues together may hold (at least `link_bytes` when both are given).
+    pub total_bytes: Option<usize>,
+}
+
+impl QueueBounds {
+    /// The smallest bound: one largest MAVLink frame (280 bytes) plus the 32 bytes of
+    /// bookkeeping the core counts per packet, so a queue can always hold one packet.
+    pub const MIN_BYTES: u64 = 280 + 32;
+    /// The largest bound, 2^40 bytes (1 TiB): far beyond any real memory, low enough that
+    /// sums over many links cannot overflow.
+    pub const MAX_BYTES: u64 = 1 << 40;
 }
 
 /// Index of a chain in [`Config::chains`].

@@ -9,9 +9,10 @@ use super::diagnostic::{Diagnostic, Position};
 use super::lexer::{Cursor, is_word_char};
 use super::{Span, suggest};
 
-const TOP_LEVEL: &[&str] = &["default_action", "udp", "serial", "chain"];
+const TOP_LEVEL: &[&str] = &["default_action", "udp", "serial", "queue", "chain"];
 const UDP_STATEMENTS: &[&str] = &["port", "address", "max_bitrate"];
 const SERIAL_STATEMENTS: &[&str] = &["device", "baudrate", "flow_control", "preload"];
+const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
 const ACTIONS: &[&str] = &["accept", "reject", "call", "goto"];
 
 const EXPECTED_SEMICOLON: &str = "expected end of statement ';' character";
@@ -88,6 +89,14 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 let settings = self.block(span, Self::serial_setting)?;
                 Ok(Item::Serial {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "queue" => {
+                self.c.word();
+                let settings = self.block(span, Self::queue_setting)?;
+                Ok(Item::Queue {
                     keyword: span,
                     settings,
                 })
@@ -185,6 +194,27 @@ impl<'a> Parser<'a> {
                 SerialSetting::Preload(self.address(INVALID_ADDRESS)?)
             }
             _ => return Err(unsupported(span, word, SERIAL_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    fn queue_setting(&mut self) -> Result<QueueSetting> {
+        const MESSAGE: &str = "expected a valid number of bytes";
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "link_bytes" => {
+                self.c.word();
+                QueueSetting::LinkBytes(self.number(MESSAGE)?)
+            }
+            "total_bytes" => {
+                self.c.word();
+                QueueSetting::TotalBytes(self.number(MESSAGE)?)
+            }
+            _ => return Err(unsupported(span, word, QUEUE_STATEMENTS)),
         };
         self.semicolon(false)?;
         Ok(setting)
@@ -453,7 +483,11 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
     if let Some(note) = suggest::did_you_mean(word, candidates.iter().copied()) {
         d = d.with_note(note);
     } else {
-        for (block, list) in [("udp", UDP_STATEMENTS), ("serial", SERIAL_STATEMENTS)] {
+        for (block, list) in [
+            ("udp", UDP_STATEMENTS),
+            ("serial", SERIAL_STATEMENTS),
+            ("queue", QUEUE_STATEMENTS),
+        ] {
             if list.contains(&word) && candidates != list {
                 d = d.with_note(format!("'{word}' belongs in a '{block}' block"));
             }

@@ -11,6 +11,7 @@
 
 use super::Span;
 use super::ast::*;
+use super::lines::LineIndex;
 use std::fmt::Write;
 
 /// Renders the header line and the tree of `ast`, read from `path`.
@@ -87,6 +88,16 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::Queue { keyword, settings } => {
+                self.node(0, *keyword, "queue", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        QueueSetting::LinkBytes(v) => ("link_bytes", *v),
+                        QueueSetting::TotalBytes(v) => ("total_bytes", *v),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {
@@ -117,26 +128,6 @@ impl Printer<'_, '_> {
             if let Some(d) = &c.dest {
                 self.node(3, d.span, "dest", Some(d.span));
             }
-        }
-    }
-}
-
-/// Maps byte offsets to 1-based line numbers.
-struct LineIndex {
-    starts: Vec<usize>,
-}
-
-impl LineIndex {
-    fn new(src: &str) -> Self {
-        let mut starts = vec![0];
-        starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
-        LineIndex { starts }
-    }
-
-    fn line_of(&self, offset: usize) -> usize {
-        match self.starts.binary_search(&offset) {
-            Ok(i) => i + 1,
-            Err(i) => i,
         }
     }
 }

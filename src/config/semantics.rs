@@ -3,12 +3,14 @@
 //! finds (in file order) rather than stopping at the first.
 
 use super::ast::{
-    self, ActionAst, AddressAst, Ast, Item, MaskAst, SerialSetting, SubnetAst, UdpSetting,
+    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst,
+    UdpSetting,
 };
-use super::diagnostic::{Diagnostic, Position};
+use super::diagnostic::Diagnostic;
+use super::lines::LineIndex;
 use super::model::*;
 use super::{Span, suggest};
-use crate::address::{Address, Subnet};
+use crate::address::{Address, PrefixMask, Subnet};
 use crate::dialect;
 use std::collections::HashMap;
 use std::net::Ipv4Addr;
@@ -30,6 +32,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
         ids: HashMap::new(),
         names: Vec::new(),
         edges: Vec::new(),
+        lines: LineIndex::new(ast.src),
     };
     cx.register_chains();
     let mut default_action = DefaultAction::Reject;
@@ -38,6 +41,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     // socket or device.
     let mut udp_seen: Vec<(Ipv4Addr, u16, usize)> = Vec::new();
     let mut serial_seen: Vec<(String, usize)> = Vec::new();
+    let mut queue = QueueBounds::default();
+    // Line of the first `queue` block: a second one is an error.
+    let mut queue_line: Option<usize> = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -65,6 +71,22 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                 if let Some(serial) = cx.serial(*keyword, settings) {
                     cx.no_shared_device(*keyword, &serial, &mut serial_seen);
                     interfaces.push(Interface::Serial(serial));
+                }
+            }
+            Item::Queue { keyword, settings } => {
+                if let Some(first) = queue_line {
+                    cx.error(
+                        Diagnostic::new(*keyword, "only one 'queue' block is allowed").with_note(
+                            format!(
+                                "the first 'queue' block is on line {first}; give both bounds there"
+                            ),
+                        ),
+                    );
+                }
+                let bounds = cx.queue(settings);
+                if queue_line.is_none() {
+                    queue_line = Some(cx.line(*keyword));
+                    queue = bounds.unwrap_or_default();
                 }
             }
             Item::Chain { name, rules } => {
@@ -105,6 +127,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             interfaces,
             chains,
             default_chain,
+            queue,
         },
         warnings,
     })
@@ -124,6 +147,7 @@ struct Checker<'a, 'b> {
     ids: HashMap<&'a str, ChainId>,
     names: Vec<(&'a str, Span)>,
     edges: Vec<Edge>,
+    lines: LineIndex,
 }
 
 impl<'a> Checker<'a, '_> {
@@ -136,7 +160,7 @@ impl<'a> Checker<'a, '_> {
     }
 
     fn line(&self, span: Span) -> usize {
-        Position::of(self.ast.src, span.start).line
+        self.lines.line_of(span.start)
     }
 
     /// Every chain name first, so chains can be used before their definition.
@@ -243,6 +267,62 @@ impl<'a> Checker<'a, '_> {
         seen.push((serial.device.clone(), line));
     }
 
+    /// The bounds of a `queue` block; every bad value is reported.
+    fn queue(&mut self, settings: &[QueueSetting]) -> Option<QueueBounds> {
+        let mut bounds = QueueBounds::default();
+        let mut total_at = None;
+        let mut ok = true;
+        for s in settings {
+            let (span, name, slot) = match s {
+                QueueSetting::LinkBytes(v) => (*v, "link_bytes", &mut bounds.link_bytes),
+                QueueSetting::TotalBytes(v) => {
+                    total_at = Some(*v);
+                    (*v, "total_bytes", &mut bounds.total_bytes)
+                }
+            };
+            match self.queue_bytes(span, name) {
+                Some(bytes) => *slot = Some(bytes),
+                None => ok = false,
+            }
+        }
+        if let (Some(link), Some(total), Some(at)) =
+            (bounds.link_bytes, bounds.total_bytes, total_at)
+            && total < link
+        {
+            self.error(
+                Diagnostic::new(
+                    at,
+                    format!("total_bytes ({total}) must be at least link_bytes ({link})"),
+                )
+                .with_note("all queues together need room for at least one full link queue"),
+            );
+            ok = false;
+        }
+        ok.then_some(bounds)
+    }
+
+    /// A queue bound in bytes, from one largest frame with its bookkeeping up to 2^40.
+    fn queue_bytes(&mut self, span: Span, name: &str) -> Option<usize> {
+        let (min, max) = (QueueBounds::MIN_BYTES, QueueBounds::MAX_BYTES);
+        let max = max.min(u64::try_from(usize::MAX).unwrap_or(u64::MAX));
+        let text = self.text(span);
+        match text.parse::<u64>() {
+            Ok(v) if (min..=max).contains(&v) => usize::try_from(v).ok(),
+            _ => {
+                self.error(
+                    Diagnostic::new(
+                        span,
+                        format!("{name} ({text}) is outside of the allowed range ({min} - {max})"),
+                    )
+                    .with_note(
+                        "a queue needs room for one largest frame (280 bytes) and its 32 bytes of bookkeeping; the most is 2^40 bytes",
+                    ),
+                );
+                None
+            }
+        }
+    }
+
     fn serial(&mut self, keyword: Span, settings: &[SerialSetting]) -> Option<SerialInterface> {
         let mut device = None;
         let mut serial = SerialInterface {
@@ -324,33 +404,24 @@ impl<'a> Checker<'a, '_> {
                 let mask = self.address(&mask);
                 Some(Subnet::new(address?, mask?))
             }
-            MaskAst::Slash(bits) => {
-                let text = self.text(bits);
-                match text.parse::<u8>().ok().filter(|b| *b <= 16) {
-                    Some(b) => Subnet::with_prefix(address?, b),
-                    None => {
-                        self.error(Diagnostic::new(
-                            bits,
-                            format!(
-                                "Forward slash mask ({text}) is outside of allowed range (0 - 16)."
-                            ),
-                        ));
-                        None
-                    }
-                }
-            }
-            MaskAst::Backslash(bits) => {
-                let text = self.text(bits);
-                match text.parse::<u8>().ok().filter(|b| *b <= 8) {
-                    Some(b) => Subnet::with_component_prefix(address?, b),
-                    None => {
-                        self.error(Diagnostic::new(
-                            bits,
-                            format!("Backslash mask ({text}) is outside of allowed range (0 - 8)."),
-                        ));
-                        None
-                    }
-                }
+            MaskAst::Slash(bits) => self.prefix_masked(address, PrefixMask::Slash, bits),
+            MaskAst::Backslash(bits) => self.prefix_masked(address, PrefixMask::Backslash, bits),
+        }
+    }
+
+    /// `address` under the bit count written at `bits` (`/n` or `\n`); the bit count is
+    /// checked even when the address was wrong, so both errors are reported.
+    fn prefix_masked(
+        &mut self,
+        address: Option<Address>,
+        form: PrefixMask,
+        bits: Span,
+    ) -> Option<Subnet> {
+        match form.bits(self.text(bits)) {
+            Ok(n) => form.subnet(address?, n),
+            Err(message) => {
+                self.error(Diagnostic::new(bits, message));
+                None
             }
         }
     }

@@ -1,9 +1,9 @@
 //! Walks the chains of a [`Config`] for one (message id, source, destination) triple.
 //!
-//! Semantics (spec §2): rules run in order and the first that decides wins; a rule whose
-//! condition fails continues. `call X` returns X's result as-is, so an undecided X falls
-//! through to the caller's next rule; `goto X` turns an undecided X into "default", which
-//! ends evaluation with the default action. A priority on `call`/`goto` is attached only
+//! The original mavtables' semantics: rules run in order and the first that decides
+//! wins; a rule whose condition fails continues. `call X` returns X's result as-is, so
+//! an undecided X falls through to the caller's next rule; `goto X` turns an undecided X
+//! into "default", which ends evaluation with the default action. A priority on `call`/`goto` is attached only
 //! to an accept that has none yet (innermost explicit priority wins). Unset priority is 0.
 //!
 //! The walk uses an explicit stack, never recursion, and gives up with
@@ -32,8 +32,9 @@ enum Entry {
     Goto(Option<i32>),
 }
 
+/// One chain being evaluated: where to resume in it and how it was entered.
 #[derive(Debug, Clone, Copy)]
-struct Frame {
+struct CallFrame {
     chain: usize,
     next_rule: usize,
     entry: Entry,
@@ -45,7 +46,7 @@ pub struct Evaluator {
     chains: Vec<Chain>,
     start: usize,
     default_action: DefaultAction,
-    stack: Vec<Frame>,
+    stack: Vec<CallFrame>,
 }
 
 impl Evaluator {
@@ -74,7 +75,7 @@ impl Evaluator {
     fn walk(&mut self, message_id: u32, source: Address, dest: Address) -> Outcome {
         let depth_limit = self.chains.len().max(1);
         self.stack.clear();
-        self.stack.push(Frame {
+        self.stack.push(CallFrame {
             chain: self.start,
             next_rule: 0,
             entry: Entry::Start,
@@ -132,7 +133,7 @@ impl Evaluator {
     }
 
     fn push(&mut self, chain: usize, entry: Entry) {
-        self.stack.push(Frame {
+        self.stack.push(CallFrame {
             chain,
             next_rule: 0,
             entry,
@@ -143,7 +144,7 @@ impl Evaluator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{ChainId, Condition, Rule};
+    use crate::config::{ChainId, Condition, QueueBounds, Rule};
 
     const HEARTBEAT: u32 = 0;
     const PING: u32 = 4;
@@ -255,6 +256,7 @@ mod tests {
                 },
             ],
             default_chain: ChainId(0),
+            queue: QueueBounds::default(),
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -285,6 +287,7 @@ mod tests {
                 rules: vec![rule(Action::Call(ChainId(7)))],
             }],
             default_chain: ChainId(3),
+            queue: QueueBounds::default(),
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(

@@ -1,5 +1,6 @@
 //! The packet filter: chains of `accept` / `reject` / `call` / `goto` rules evaluated for
-//! every (packet, destination address) pair, exactly as the original (spec §2).
+//! every (packet, destination address) pair, exactly as the original mavtables did
+//! (`docs/configuration.md` describes them for users).
 //!
 //! The result of the filter depends only on the packet's message id, its source address
 //! and the destination address being filtered for, so [`Filter`] memoizes it in a small

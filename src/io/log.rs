@@ -75,7 +75,7 @@ pub fn prefix_for(unix_seconds: i64) -> String {
         Some((y, mo, d, h, mi, s)) => format!("{y:04}-{mo:02}-{d:02} {h:02}:{mi:02}:{s:02}  "),
         None => {
             let us = u64::try_from(unix_seconds).unwrap_or(0) * 1_000_000;
-            let utc = crate::tools::utc::format_micros(us);
+            let utc = crate::utc::format_micros(us);
             format!("{}  ", &utc[..19])
         }
     }

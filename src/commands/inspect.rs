@@ -12,7 +12,7 @@ use crate::capture::{self, Unit};
 use crate::dialect::{self, decode};
 use crate::wire::{Frame, ParseEvents, Parser, ParserStats, Rejection, Version};
 
-use super::utc;
+use crate::utc;
 
 /// What `inspect` was asked to do.
 #[derive(Debug, Clone, Default)]

@@ -1,13 +1,16 @@
-//! The `inspect` and `replay` subcommands: argument parsing and output.
+//! The command lines of the `inspect` and `replay` subcommands (read by the shared
+//! [`super::arg_reader`] reader, so they follow the same rules as the main command) and
+//! the texts they print.
 
 use std::io::{IsTerminal, Write};
 
 use super::Outcome;
+use super::arg_reader::{Arg, ArgReader, OptionSpec};
 use crate::address::Subnet;
+use crate::commands::inspect::{self, Options};
+use crate::commands::replay::{self, ProgressBar, Speed, Target};
 use crate::config::suggest::did_you_mean;
 use crate::dialect;
-use crate::tools::inspect::{self, Options};
-use crate::tools::replay::{self, ProgressBar, Speed, Target};
 
 const INSPECT_USAGE: &str = "\
 usage: mavtables inspect [OPTIONS] FILE...
@@ -22,6 +25,18 @@ usage: mavtables inspect [OPTIONS] FILE...
   --to SUBNET       show only frames targeted into this MAVLink subnet
 ";
 
+/// The options of `inspect`, as read by the shared reader.
+const INSPECT_OPTIONS: &[OptionSpec] = &[
+    OptionSpec::flag("help"),
+    OptionSpec::flag("json"),
+    OptionSpec::flag("check"),
+    OptionSpec::value("only"),
+    OptionSpec::flag("no-crc"),
+    OptionSpec::value("msg"),
+    OptionSpec::value("from"),
+    OptionSpec::value("to"),
+];
+
 const REPLAY_USAGE: &str = "\
 usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|max]
   Sends a capture's valid frames at their recorded timing (divided by X; default 1),
@@ -29,8 +44,19 @@ usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|ma
   as fast as the link takes them.
 ";
 
+/// The options of `replay`, as read by the shared reader.
+const REPLAY_OPTIONS: &[OptionSpec] = &[
+    OptionSpec::flag("help"),
+    OptionSpec::value("to"),
+    OptionSpec::value("speed"),
+];
+
 /// Runs `inspect` or `replay` if `args` (without the program name) starts with one.
-pub fn run_tool(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Option<Outcome> {
+pub fn run_subcommand(
+    args: &[String],
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Option<Outcome> {
     let (name, rest) = args.split_first()?;
     let result = match name.as_str() {
         "inspect" => run_inspect(rest, out, err),
@@ -61,13 +87,6 @@ fn message_ids(list: &str) -> Result<Vec<u32>, String> {
         .collect()
 }
 
-/// The value after option `flag`.
-fn value<'a>(it: &mut impl Iterator<Item = &'a String>, flag: &str) -> Result<&'a str, String> {
-    it.next()
-        .map(String::as_str)
-        .ok_or_else(|| format!("the required argument for option '{flag}' is missing"))
-}
-
 fn subnet(text: &str) -> Result<Subnet, String> {
     text.parse()
         .map_err(|e: crate::address::SubnetParseError| e.0)
@@ -76,24 +95,28 @@ fn subnet(text: &str) -> Result<Subnet, String> {
 fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Result<u8, String> {
     let mut opts = Options::default();
     let mut files = Vec::new();
-    let mut it = args.iter();
-    while let Some(arg) = it.next() {
-        match arg.as_str() {
-            "-h" | "--help" => {
+    let mut reader = ArgReader::new(args.iter().cloned(), &[INSPECT_OPTIONS]);
+    while let Some(arg) = reader.next_arg()? {
+        let (name, value) = match arg {
+            Arg::Positional(file) => {
+                files.push(file);
+                continue;
+            }
+            Arg::Option { name, value } => (name, value.unwrap_or_default()),
+        };
+        match name {
+            "help" => {
                 let _ = out.write_all(INSPECT_USAGE.as_bytes());
                 return Ok(0);
             }
-            "--json" => opts.json = true,
-            "--check" => opts.check = true,
-            "--no-crc" => opts.no_crc = true,
-            "--only" => opts.only = Some(message_ids(value(&mut it, arg)?)?),
-            "--msg" => opts.msgs = Some(message_ids(value(&mut it, arg)?)?),
-            "--from" => opts.from = Some(subnet(value(&mut it, arg)?)?),
-            "--to" => opts.to = Some(subnet(value(&mut it, arg)?)?),
-            a if a.starts_with('-') && a.len() > 1 => {
-                return Err(format!("unrecognised option '{a}'"));
-            }
-            file => files.push(file.to_string()),
+            "json" => opts.json = true,
+            "check" => opts.check = true,
+            "no-crc" => opts.no_crc = true,
+            "only" => opts.only = Some(message_ids(&value)?),
+            "msg" => opts.msgs = Some(message_ids(&value)?),
+            "from" => opts.from = Some(subnet(&value)?),
+            "to" => opts.to = Some(subnet(&value)?),
+            _ => {}
         }
     }
     if files.is_empty() {
@@ -139,20 +162,23 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
     let mut file = None;
     let mut target = None;
     let mut speed = Speed::Factor(1.0);
-    let mut it = args.iter();
-    while let Some(arg) = it.next() {
-        match arg.as_str() {
-            "-h" | "--help" => {
+    let mut reader = ArgReader::new(args.iter().cloned(), &[REPLAY_OPTIONS]);
+    while let Some(arg) = reader.next_arg()? {
+        match arg {
+            Arg::Option { name: "help", .. } => {
                 let _ = out.write_all(REPLAY_USAGE.as_bytes());
                 return Ok(0);
             }
-            "--to" => target = Some(Target::parse(value(&mut it, arg)?)?),
-            "--speed" => speed = Speed::parse(value(&mut it, arg)?)?,
-            a if a.starts_with('-') && a.len() > 1 => {
-                return Err(format!("unrecognised option '{a}'"));
+            Arg::Option { name: "to", value } => {
+                target = Some(Target::parse(&value.unwrap_or_default())?);
             }
-            f if file.is_none() => file = Some(f.to_string()),
-            extra => return Err(format!("unexpected argument '{extra}'")),
+            Arg::Option {
+                name: "speed",
+                value,
+            } => speed = Speed::parse(&value.unwrap_or_default())?,
+            Arg::Option { .. } => {}
+            Arg::Positional(f) if file.is_none() => file = Some(f),
+            Arg::Positional(extra) => return Err(format!("unexpected argument '{extra}'")),
         }
     }
     let (Some(file), Some(target)) = (file, target) else {
