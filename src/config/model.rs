@@ -85,7 +85,7 @@ pub struct SerialInterface {
 
 /// The `queue { link_bytes N; total_bytes N; }` block: how many bytes of packets (each
 /// counted with its bookkeeping) may wait to be sent. `None` leaves the routing core's
-/// default: 4 MiB per link, 32 MiB in all. When a queue is full, the lowest-priority,
+/// default: 4 MiB per link, 16 MiB in all. When a queue is full, the lowest-priority,
 /// oldest packet is dropped and counted.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct QueueBounds {

@@ -289,10 +289,16 @@ pub fn run(config: &Config, loglevel: u8) -> u8 {
 
 /// The routing core's options for `config` at `loglevel`: its defaults, with the queue
 /// bounds the configuration sets.
-fn options(_config: &Config, loglevel: u8) -> RouterOptions {
+fn options(config: &Config, loglevel: u8) -> RouterOptions {
+    let defaults = RouterOptions::default();
     RouterOptions {
         event_level: loglevel,
-        ..RouterOptions::default()
+        queue_capacity: config.queue.link_bytes.unwrap_or(defaults.queue_capacity),
+        total_queue_capacity: config
+            .queue
+            .total_bytes
+            .unwrap_or(defaults.total_queue_capacity),
+        ..defaults
     }
 }
 
