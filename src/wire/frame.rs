@@ -3,156 +3,16 @@
 use std::fmt;
 
 use crate::address::Address;
-use crate::dialect::{self, MessageInfo};
+use crate::dialect::MessageInfo;
 
-use super::crc::frame_checksum;
-
-/// First byte of a MAVLink 1 frame.
-pub const MAGIC_V1: u8 = 0xFE;
-/// First byte of a MAVLink 2 frame.
-pub const MAGIC_V2: u8 = 0xFD;
-/// Header length of a MAVLink 1 frame, magic byte included.
-pub const HEADER_LEN_V1: usize = 6;
-/// Header length of a MAVLink 2 frame, magic byte included.
-pub const HEADER_LEN_V2: usize = 10;
-/// Length of the checksum that follows the payload.
-pub const CHECKSUM_LEN: usize = 2;
-/// Length of a MAVLink 2 signature block (link id, timestamp, signature).
-pub const SIGNATURE_LEN: usize = 13;
-/// The only incompatibility flag MAVLink 2 defines: the frame carries a signature.
-pub const INCOMPAT_SIGNED: u8 = 0x01;
-/// Longest possible frame: signed v2 with a 255-byte payload.
-pub const MAX_FRAME_LEN: usize = HEADER_LEN_V2 + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
-
-/// MAVLink protocol version of a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Version {
-    /// MAVLink 1 (magic 0xFE, 8-bit message ids).
-    V1,
-    /// MAVLink 2 (magic 0xFD, 24-bit ids, truncated payloads, optional signature).
-    V2,
-}
-
-impl Version {
-    /// Magic (start) byte of this version.
-    pub const fn magic(self) -> u8 {
-        match self {
-            Version::V1 => MAGIC_V1,
-            Version::V2 => MAGIC_V2,
-        }
-    }
-
-    /// Header length (magic byte included) of this version.
-    pub const fn header_len(self) -> usize {
-        match self {
-            Version::V1 => HEADER_LEN_V1,
-            Version::V2 => HEADER_LEN_V2,
-        }
-    }
-}
-
-/// Why a frame candidate was rejected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rejection {
-    /// The checksum (with CRC_EXTRA) does not match.
-    BadCrc,
-    /// The message id is not part of the dialect.
-    UnknownId(u32),
-    /// A v2 frame sets incompatibility flags this implementation does not understand.
-    BadFlags(u8),
-    /// The payload length is outside what the message allows.
-    BadLength {
-        /// Message id of the frame.
-        id: u32,
-        /// Payload length the frame claims.
-        len: u8,
-    },
-    /// The stream ended before the frame did.
-    Truncated {
-        /// Bytes the frame needs.
-        needed: usize,
-        /// Bytes there were.
-        have: usize,
-    },
-}
-
-impl fmt::Display for Rejection {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Rejection::BadCrc => write!(f, "bad checksum"),
-            Rejection::UnknownId(id) => {
-                write!(
-                    f,
-                    "message id #{id} is not part of the '{}' dialect",
-                    dialect::DIALECT_NAME
-                )
-            }
-            Rejection::BadFlags(flags) => write!(f, "unknown incompatibility flags 0x{flags:02x}"),
-            Rejection::BadLength { id, len } => {
-                write!(f, "payload length {len} is not valid for message #{id}")
-            }
-            Rejection::Truncated { needed, have } => {
-                write!(f, "truncated frame: needs {needed} bytes, {have} present")
-            }
-        }
-    }
-}
-
-/// Outcome of looking at bytes that start with a magic byte.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Candidate {
-    /// At least this many bytes in total are needed before a verdict.
-    NeedMore(usize),
-    /// The bytes do not start a valid frame.
-    Reject(Rejection),
-    /// A valid frame of this many bytes starts here.
-    Frame(usize, &'static MessageInfo),
-}
-
-/// Judges the frame candidate at the start of `s` (which must start with a magic byte).
-/// Header problems are reported as soon as the header is complete, so a bad frame costs
-/// no waiting for bytes that belong to the next one. With `check_crc` false only the
-/// structure is checked (for tools that inspect captures with damaged checksums).
-#[inline]
-pub(crate) fn check_candidate(s: &[u8], check_crc: bool) -> Candidate {
-    let v2 = s[0] == MAGIC_V2;
-    let header_len = if v2 { HEADER_LEN_V2 } else { HEADER_LEN_V1 };
-    if s.len() < header_len {
-        return Candidate::NeedMore(header_len);
-    }
-    let len = s[1];
-    let (id, signed) = if v2 {
-        let flags = s[2];
-        if flags & !INCOMPAT_SIGNED != 0 {
-            return Candidate::Reject(Rejection::BadFlags(flags));
-        }
-        (
-            u32::from_le_bytes([s[7], s[8], s[9], 0]),
-            flags & INCOMPAT_SIGNED != 0,
-        )
-    } else {
-        (u32::from(s[5]), false)
-    };
-    let Some(info) = dialect::by_id(id) else {
-        return Candidate::Reject(Rejection::UnknownId(id));
-    };
-    // v1 carries the whole base payload (extensions allowed); v2 may drop trailing zero
-    // bytes but never the first one.
-    let min = if v2 { 1 } else { info.min_len };
-    if len < min || len > info.max_len {
-        return Candidate::Reject(Rejection::BadLength { id, len });
-    }
-    let body = header_len + len as usize;
-    let total = body + CHECKSUM_LEN + if signed { SIGNATURE_LEN } else { 0 };
-    if s.len() < total {
-        return Candidate::NeedMore(total);
-    }
-    let wire = u16::from_le_bytes([s[body], s[body + 1]]);
-    if check_crc && frame_checksum(&s[1..body], info.crc_extra) != wire {
-        return Candidate::Reject(Rejection::BadCrc);
-    }
-    Candidate::Frame(total, info)
-}
+use super::check::{Candidate, check_candidate};
+use super::header::{HeaderRepr, Layout};
+// Names that lived here before `header` and `check` existed stay reachable by this path.
+pub use super::check::Rejection;
+pub use super::header::{
+    CHECKSUM_LEN, HEADER_LEN_V1, HEADER_LEN_V2, INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN,
+    SIGNATURE_LEN, Version,
+};
 
 /// Why [`Frame::parse_exact`] refused a byte string.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -185,7 +45,7 @@ pub struct Frame<'a> {
 }
 
 impl<'a> Frame<'a> {
-    /// Builds a view over bytes already checked by [`check_candidate`].
+    /// Builds a view over bytes already checked by `check_candidate`.
     #[inline]
     pub(crate) fn new_unchecked(bytes: &'a [u8], info: &'static MessageInfo, offset: u64) -> Self {
         Frame {
@@ -204,7 +64,7 @@ impl<'a> Frame<'a> {
                     have: 0,
                 }));
             }
-            Some(&b) if b != MAGIC_V1 && b != MAGIC_V2 => return Err(ExactError::BadMagic(b)),
+            Some(&b) if Version::from_magic(b).is_none() => return Err(ExactError::BadMagic(b)),
             Some(_) => {}
         }
         match check_candidate(bytes, true) {
@@ -254,68 +114,52 @@ impl<'a> Frame<'a> {
         }
     }
 
+    /// Where this frame's header fields sit.
     #[inline]
-    fn header_len(&self) -> usize {
-        self.version().header_len()
+    fn layout(&self) -> &'static Layout {
+        self.version().layout()
+    }
+
+    /// The header's fields, owned.
+    #[inline]
+    pub fn header(&self) -> HeaderRepr {
+        HeaderRepr::read(self.version(), self.bytes)
     }
 
     /// Payload length as sent (v2 payloads may be truncated).
     #[inline]
     pub fn payload_len(&self) -> usize {
-        self.bytes[1] as usize
+        self.layout().read_payload_len(self.bytes) as usize
     }
 
     /// Incompatibility flags (always 0 for v1).
     #[inline]
     pub fn incompat_flags(&self) -> u8 {
-        match self.version() {
-            Version::V1 => 0,
-            Version::V2 => self.bytes[2],
-        }
+        self.layout().read_incompat_flags(self.bytes)
     }
 
     /// Compatibility flags (always 0 for v1).
     #[inline]
     pub fn compat_flags(&self) -> u8 {
-        match self.version() {
-            Version::V1 => 0,
-            Version::V2 => self.bytes[3],
-        }
+        self.layout().read_compat_flags(self.bytes)
     }
 
     /// Packet sequence number.
     #[inline]
     pub fn seq(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[4]
-        } else {
-            self.bytes[2]
-        }
-    }
-
-    #[inline]
-    fn is_v2(&self) -> bool {
-        self.bytes[0] == MAGIC_V2
+        self.layout().read_seq(self.bytes)
     }
 
     /// Sender's system id.
     #[inline]
     pub fn system(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[5]
-        } else {
-            self.bytes[3]
-        }
+        self.layout().read_system(self.bytes)
     }
 
     /// Sender's component id.
     #[inline]
     pub fn component(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[6]
-        } else {
-            self.bytes[4]
-        }
+        self.layout().read_component(self.bytes)
     }
 
     /// Sender's address (`system.component`).
@@ -333,7 +177,7 @@ impl<'a> Frame<'a> {
     /// The payload as sent (possibly truncated in v2: missing bytes read as zero).
     #[inline]
     pub fn payload(&self) -> &'a [u8] {
-        let start = self.header_len();
+        let start = self.layout().header_len;
         &self.bytes[start..start + self.payload_len()]
     }
 
@@ -348,7 +192,7 @@ impl<'a> Frame<'a> {
     /// The checksum as it appears on the wire.
     #[inline]
     pub fn checksum(&self) -> u16 {
-        let at = self.header_len() + self.payload_len();
+        let at = self.layout().header_len + self.payload_len();
         u16::from_le_bytes([self.bytes[at], self.bytes[at + 1]])
     }
 
@@ -380,6 +224,13 @@ impl<'a> Frame<'a> {
         let byte = |ofs: u8| payload.get(ofs as usize).copied().unwrap_or(0);
         let component = self.info.target_component_offset.map_or(0, byte);
         Some(Address::new(byte(sys_ofs), component))
+    }
+}
+
+impl From<&Frame<'_>> for HeaderRepr {
+    #[inline]
+    fn from(frame: &Frame<'_>) -> Self {
+        frame.header()
     }
 }
 
@@ -446,6 +297,7 @@ impl<'a> Signature<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::crc::frame_checksum;
     use crate::wire::encode::{Header, encode_v1, encode_v2};
 
     fn v2(id: u32, payload: &[u8]) -> Vec<u8> {

@@ -8,9 +8,9 @@
 //! the chunk being fed are handed out without copying; only a frame that straddles two
 //! chunks is assembled in a small internal buffer (at most one frame long).
 
-use super::frame::{
-    Candidate, Frame, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN, Rejection, check_candidate,
-};
+use super::check::{Candidate, Rejection, check_candidate};
+use super::frame::Frame;
+use super::header::{MAX_FRAME_LEN, Version};
 
 /// Running totals of what a parser has seen.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -71,7 +71,7 @@ impl<F: FnMut(Frame<'_>)> ParseEvents for OnFrame<F> {
 
 #[inline]
 fn is_magic(b: u8) -> bool {
-    b == MAGIC_V1 || b == MAGIC_V2
+    Version::from_magic(b).is_some()
 }
 
 /// A streaming MAVLink v1/v2 parser. One per byte stream (serial port, UDP sender, file).
