@@ -7,6 +7,7 @@ use crate::dialect::MessageInfo;
 
 use super::check::{Candidate, check_candidate};
 use super::header::{HeaderRepr, Layout};
+use super::summary::PacketSummary;
 // Names that lived here before `header` and `check` existed stay reachable by this path.
 pub use super::check::Rejection;
 pub use super::header::{
@@ -247,25 +248,10 @@ impl fmt::Debug for Frame<'_> {
     }
 }
 
-/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)`, as the original
-/// prints it (` to 0.0` included).
+/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
 impl fmt::Display for Frame<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} (#{}) from {}",
-            self.name(),
-            self.message_id(),
-            self.source()
-        )?;
-        if let Some(to) = self.target() {
-            write!(f, " to {to}")?;
-        }
-        let v = match self.version() {
-            Version::V1 => 1,
-            Version::V2 => 2,
-        };
-        write!(f, " (v{v}.0)")
+        fmt::Display::fmt(&PacketSummary::of(self), f)
     }
 }
 

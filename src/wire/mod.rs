@@ -8,8 +8,10 @@ pub mod frame;
 pub mod header;
 pub mod parser;
 pub mod signing;
+pub mod summary;
 
 pub use check::Rejection;
 pub use frame::{ExactError, Frame, Signature};
 pub use header::{HeaderError, HeaderRepr, Layout, Version};
 pub use parser::{ParseEvents, Parser, ParserStats};
+pub use summary::PacketSummary;
