@@ -1,5 +1,12 @@
 //! Judging a frame candidate: the bytes at a magic byte either start a valid frame, start
 //! something that is not one ([`Rejection`]), or need more bytes before a verdict.
+//!
+//! A MAVLink 2 frame longer than its message's known length is valid when its checksum
+//! holds: a newer autopilot sends extension fields this dialect does not know yet, and
+//! receivers must ignore the extra bytes, so a router forwards such a frame unchanged.
+//! [`Checks::STRICT`] (for `inspect --check`) rejects it instead, and so does a check
+//! without checksums, which has nothing to vouch for the longer length. A MAVLink 1 frame
+//! never carries extensions: a length above the message's is always rejected.
 
 use std::fmt;
 
@@ -23,6 +30,16 @@ pub enum Rejection {
         id: u32,
         /// Payload length the frame claims.
         len: u8,
+    },
+    /// A v2 frame longer than its message's known length, under [`Checks::STRICT`] or
+    /// without checksum checks (otherwise such a frame is valid).
+    LongerThanKnown {
+        /// Message id of the frame.
+        id: u32,
+        /// Payload length the frame claims.
+        len: u8,
+        /// The message's known (longest) payload length.
+        known: u8,
     },
     /// The stream ended before the frame did.
     Truncated {
@@ -48,10 +65,46 @@ impl fmt::Display for Rejection {
             Rejection::BadLength { id, len } => {
                 write!(f, "payload length {len} is not valid for message #{id}")
             }
+            Rejection::LongerThanKnown { id, len, known } => write!(
+                f,
+                "payload length {len} is longer than message #{id}'s known {known} bytes"
+            ),
             Rejection::Truncated { needed, have } => {
                 write!(f, "truncated frame: needs {needed} bytes, {have} present")
             }
         }
+    }
+}
+
+/// What is checked beyond a frame's structure (magic, known id, known incompatibility
+/// flags, payload length within the message's limits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Checks {
+    /// Check checksums. Off only for inspecting captures with damaged checksums; then a
+    /// v2 frame longer than its message's known length is rejected, as nothing vouches
+    /// for its length.
+    pub crc: bool,
+    /// Reject a v2 frame longer than its message's known length
+    /// ([`Rejection::LongerThanKnown`]) instead of accepting it.
+    pub known_length: bool,
+}
+
+impl Checks {
+    /// What a router checks: checksums; v2 frames longer than known are valid.
+    pub const ROUTING: Checks = Checks {
+        crc: true,
+        known_length: false,
+    };
+    /// What `inspect --check` checks: checksums, and no frame longer than known.
+    pub const STRICT: Checks = Checks {
+        crc: true,
+        known_length: true,
+    };
+}
+
+impl Default for Checks {
+    fn default() -> Self {
+        Checks::ROUTING
     }
 }
 
@@ -68,20 +121,21 @@ pub(crate) enum Candidate {
 
 /// Judges the frame candidate at the start of `s` (which must start with a magic byte).
 /// Header problems are reported as soon as the header is complete, so a bad frame costs
-/// no waiting for bytes that belong to the next one. With `check_crc` false only the
-/// structure is checked (for tools that inspect captures with damaged checksums).
+/// no waiting for bytes that belong to the next one. The exception is a v2 frame longer
+/// than its message's known length when that is allowed: only the checksum, at the end,
+/// can tell such a frame from a corrupt length byte.
 #[inline]
-pub(crate) fn check_candidate(s: &[u8], check_crc: bool) -> Candidate {
+pub(crate) fn check_candidate(s: &[u8], checks: Checks) -> Candidate {
     // One copy of the checks per version, each with its layout known at compile time.
     if s[0] == MAGIC_V2 {
-        check_with(&header::V2, s, check_crc)
+        check_with(&header::V2, s, checks)
     } else {
-        check_with(&header::V1, s, check_crc)
+        check_with(&header::V1, s, checks)
     }
 }
 
 #[inline(always)]
-fn check_with(l: &'static Layout, s: &[u8], check_crc: bool) -> Candidate {
+fn check_with(l: &'static Layout, s: &[u8], checks: Checks) -> Candidate {
     if s.len() < l.header_len {
         return Candidate::NeedMore(l.header_len);
     }
@@ -96,10 +150,17 @@ fn check_with(l: &'static Layout, s: &[u8], check_crc: bool) -> Candidate {
         return Candidate::Reject(Rejection::UnknownId(id));
     };
     // v1 carries the whole base payload (extensions allowed); v2 may drop trailing zero
-    // bytes but never the first one.
+    // bytes but never the first one, and may carry extensions this dialect lacks.
     let min = if v2 { 1 } else { info.min_len };
-    if len < min || len > info.max_len {
+    if len < min || (len > info.max_len && !v2) {
         return Candidate::Reject(Rejection::BadLength { id, len });
+    }
+    if len > info.max_len && (checks.known_length || !checks.crc) {
+        return Candidate::Reject(Rejection::LongerThanKnown {
+            id,
+            len,
+            known: info.max_len,
+        });
     }
     let body = l.header_len + len as usize;
     let total = l.frame_len(len, flags);
@@ -107,7 +168,7 @@ fn check_with(l: &'static Layout, s: &[u8], check_crc: bool) -> Candidate {
         return Candidate::NeedMore(total);
     }
     let wire = u16::from_le_bytes([s[body], s[body + 1]]);
-    if check_crc && frame_checksum(&s[CHECKSUM_START..body], info.crc_extra) != wire {
+    if checks.crc && frame_checksum(&s[CHECKSUM_START..body], info.crc_extra) != wire {
         return Candidate::Reject(Rejection::BadCrc);
     }
     Candidate::Frame(total, info)

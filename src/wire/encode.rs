@@ -166,3 +166,64 @@ pub fn encode_v2(
     }
     Ok(())
 }
+
+/// Appends an unsigned MAVLink 2 frame whose payload is exactly `payload`: no trailing
+/// zeros dropped and no length limit but the wire's 255 bytes, so it can be longer than
+/// the message's known length (as from a newer dialect's extension fields) or empty
+/// (which no receiver accepts). For tests and tools that need such frames.
+pub fn encode_v2_exact(
+    header: Header,
+    id: u32,
+    payload: &[u8],
+    out: &mut Vec<u8>,
+) -> Result<(), EncodeError> {
+    let info = dialect::by_id(id).ok_or(EncodeError::UnknownId(id))?;
+    let len = u8::try_from(payload.len()).map_err(|_| EncodeError::PayloadTooLong {
+        len: payload.len(),
+        max: u8::MAX as usize,
+    })?;
+    let start = out.len();
+    push_header(
+        out,
+        &HeaderRepr {
+            version: Version::V2,
+            payload_len: len,
+            incompat_flags: 0,
+            compat_flags: 0,
+            seq: header.seq,
+            system: header.system,
+            component: header.component,
+            message_id: id,
+        },
+    );
+    out.extend_from_slice(payload);
+    push_checksum(out, start, info.crc_extra);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Frame;
+
+    #[test]
+    fn exact_payloads_are_kept_as_given() {
+        let h = Header {
+            seq: 3,
+            system: 1,
+            component: 2,
+        };
+        let mut out = Vec::new();
+        encode_v2_exact(h, 0, &[0; 9], &mut out).expect("known id");
+        let f = Frame::parse_exact(&out).expect("valid");
+        assert_eq!(f.payload(), &[0; 9], "trailing zeros are not dropped");
+        assert_eq!(
+            encode_v2_exact(h, 0, &[0; 256], &mut out),
+            Err(EncodeError::PayloadTooLong { len: 256, max: 255 })
+        );
+        assert_eq!(
+            encode_v2_exact(h, 0x00ff_ffff, &[1], &mut out),
+            Err(EncodeError::UnknownId(0x00ff_ffff))
+        );
+    }
+}

@@ -5,7 +5,7 @@ use std::fmt;
 use crate::address::Address;
 use crate::dialect::MessageInfo;
 
-use super::check::{Candidate, check_candidate};
+use super::check::{Candidate, Checks, check_candidate};
 use super::header::{HeaderRepr, Layout};
 use super::summary::PacketSummary;
 // Names that lived here before `header` and `check` existed stay reachable by this path.
@@ -57,6 +57,7 @@ impl<'a> Frame<'a> {
     }
 
     /// Checks that `bytes` is exactly one valid frame (checksum included) and views it.
+    /// As for a router, a v2 frame longer than its message's known length is valid.
     pub fn parse_exact(bytes: &'a [u8]) -> Result<Self, ExactError> {
         match bytes.first() {
             None => {
@@ -68,7 +69,7 @@ impl<'a> Frame<'a> {
             Some(&b) if Version::from_magic(b).is_none() => return Err(ExactError::BadMagic(b)),
             Some(_) => {}
         }
-        match check_candidate(bytes, true) {
+        match check_candidate(bytes, Checks::ROUTING) {
             Candidate::NeedMore(needed) => Err(ExactError::Rejected(Rejection::Truncated {
                 needed,
                 have: bytes.len(),
@@ -169,13 +170,21 @@ impl<'a> Frame<'a> {
         Address::new(self.system(), self.component())
     }
 
+    /// True for a v2 frame whose payload is longer than its message's known length
+    /// (extension fields this dialect does not know; decoding ignores the extra bytes).
+    #[inline]
+    pub fn is_longer_than_known(&self) -> bool {
+        self.payload_len() > self.info.max_len as usize
+    }
+
     /// Message id.
     #[inline]
     pub fn message_id(&self) -> u32 {
         self.info.id
     }
 
-    /// The payload as sent (possibly truncated in v2: missing bytes read as zero).
+    /// The payload as sent (possibly truncated in v2: missing bytes read as zero; or
+    /// longer than known: see [`Frame::is_longer_than_known`]).
     #[inline]
     pub fn payload(&self) -> &'a [u8] {
         let start = self.layout().header_len;
@@ -392,12 +401,12 @@ mod tests {
             Some(ExactError::Rejected(Rejection::UnknownId(255)))
         );
         let mut too_long = good;
-        too_long[1] = 10; // HEARTBEAT is at most 9 bytes
+        too_long[1] = 10; // HEARTBEAT is 9 bytes: a longer frame needs one more byte
         assert_eq!(
             Frame::parse_exact(&too_long).err(),
-            Some(ExactError::Rejected(Rejection::BadLength {
-                id: 0,
-                len: 10
+            Some(ExactError::Rejected(Rejection::Truncated {
+                needed: 22,
+                have: 21
             }))
         );
         assert!(matches!(
@@ -416,5 +425,31 @@ mod tests {
             Frame::parse_exact(&bytes).err(),
             Some(ExactError::Rejected(Rejection::BadLength { id: 0, len: 8 }))
         );
+    }
+
+    #[test]
+    fn longer_than_known_v2_frames_parse_and_read_like_known_ones() {
+        // PING (14 bytes known) with 4 more: target fields and the header read as usual.
+        let mut payload = vec![0u8; 18];
+        payload[12] = 127;
+        payload[13] = 1;
+        payload[14..].copy_from_slice(&[9, 9, 9, 9]);
+        let mut bytes = Vec::new();
+        let header = Header {
+            seq: 7,
+            system: 3,
+            component: 4,
+        };
+        crate::wire::encode::encode_v2_exact(header, 4, &payload, &mut bytes).expect("encodable");
+        let f = Frame::parse_exact(&bytes).expect("valid: the checksum holds");
+        assert!(f.is_longer_than_known());
+        assert_eq!(f.payload_len(), 18);
+        assert_eq!(f.payload(), &payload[..]);
+        assert_eq!(f.as_bytes(), &bytes[..]);
+        assert_eq!(f.target(), Some(Address::new(127, 1)));
+        assert_eq!(f.to_string(), "PING (#4) from 3.4 to 127.1 (v2.0)");
+        let h = f.header();
+        assert_eq!((h.seq, h.payload_len, h.message_id), (7, 18, 4));
+        assert_eq!(h.frame_len(), bytes.len());
     }
 }

@@ -10,7 +10,7 @@ pub mod parser;
 pub mod signing;
 pub mod summary;
 
-pub use check::Rejection;
+pub use check::{Checks, Rejection};
 pub use frame::{ExactError, Frame, Signature};
 pub use header::{HeaderError, HeaderRepr, Layout, Version};
 pub use parser::{ParseEvents, Parser, ParserStats};
