@@ -1,4 +1,4 @@
-//! What the router reports for logging, and the original's exact log texts (spec §7.2).
+//! What the router reports for logging, and the original's exact log texts.
 //!
 //! `Display` renders the message without the `YYYY-MM-DD HH:MM:SS  ` prefix, which the I/O
 //! layer adds; an event of [`Event::level`] L is printed iff the log level is at least L.
