@@ -1,4 +1,5 @@
-//! MAVLink frame layout and [`Frame`], a checked zero-copy view of one frame.
+//! [`Frame`], a checked zero-copy view of one frame; its header is read through the
+//! per-version layouts of [`super::header`].
 
 use std::fmt;
 
