@@ -1,9 +1,10 @@
 //! Property tests of the frame parser: round trips through the encoder, chunking
-//! independence, garbage resistance and byte accounting.
+//! independence, garbage resistance, byte accounting, and v2 frames longer than their
+//! message's known length (forwarded when the checksum holds).
 
 use mavtables::dialect;
-use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2};
-use mavtables::wire::{Frame, Parser, Version};
+use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2, encode_v2_exact};
+use mavtables::wire::{Checks, Frame, Parser, Rejection, Version};
 use proptest::prelude::*;
 
 /// A message to encode: dialect index, version, header, payload, signing.
@@ -205,5 +206,81 @@ proptest! {
         for want in &expected {
             prop_assert!(it.any(|s| &s.bytes == want), "lost a valid frame");
         }
+    }
+
+    #[test]
+    fn longer_than_known_frames_come_out_exactly_and_are_counted(
+        msgs in prop::collection::vec(msg(), 0..6),
+        at in any::<prop::sample::Index>(),
+        index in 0..dialect::messages().len(),
+        extra in prop::collection::vec(any::<u8>(), 1..=200),
+        header in any::<(u8, u8, u8)>(),
+        chunk_len in 1usize..64,
+    ) {
+        let info = &dialect::messages()[index];
+        let room = 255 - info.max_len as usize;
+        prop_assume!(room > 0);
+        // The known payload (any bytes), then bytes of fields this dialect does not know.
+        let mut payload: Vec<u8> = (0..info.max_len).map(|i| i.wrapping_mul(31)).collect();
+        payload.extend(extra.iter().take(room));
+        let (seq, system, component) = header;
+        let mut long = Vec::new();
+        encode_v2_exact(Header { seq, system, component }, info.id, &payload, &mut long)
+            .expect("known id, at most 255 bytes");
+        // Among ordinary frames, at any position.
+        let mut stream = Vec::new();
+        let slot = at.index(msgs.len() + 1);
+        let mut long_at = 0;
+        for (i, m) in msgs.iter().enumerate() {
+            if i == slot {
+                long_at = stream.len();
+                stream.extend_from_slice(&long);
+            }
+            encode(m, &mut stream);
+        }
+        if slot == msgs.len() {
+            long_at = stream.len();
+            stream.extend_from_slice(&long);
+        }
+        let chunks: Vec<&[u8]> = stream.chunks(chunk_len).collect();
+        let (seen, parser) = parse_all(&chunks);
+        prop_assert_eq!(seen.len(), msgs.len() + 1);
+        prop_assert_eq!(&seen[slot].bytes, &long, "forwarded unchanged");
+        prop_assert_eq!(parser.stats().longer_than_known, 1);
+        prop_assert_eq!(parser.stats().frames, msgs.len() as u64 + 1);
+        assert_accounting(&parser, &seen);
+        let f = Frame::parse_exact(&long).expect("a longer frame is one valid frame");
+        prop_assert!(f.is_longer_than_known());
+        prop_assert_eq!((f.seq(), f.system(), f.component()), (seq, system, component));
+        // The target comes from the known part of the payload.
+        if let Some(ofs) = info.target_system_offset {
+            prop_assert_eq!(f.target().map(|a| a.system), Some(payload[ofs as usize]));
+        }
+        // Strict checks reject it at its header and still find every other frame.
+        let mut strict = Parser::with_checks(Checks::STRICT);
+        let mut rejected = Vec::new();
+        let mut others = 0;
+        struct Events<'a>(&'a mut Vec<(u64, Rejection)>, &'a mut usize);
+        impl mavtables::wire::ParseEvents for Events<'_> {
+            fn frame(&mut self, _: Frame<'_>) {
+                *self.1 += 1;
+            }
+            fn rejected(&mut self, offset: u64, why: Rejection) {
+                self.0.push((offset, why));
+            }
+        }
+        let mut events = Events(&mut rejected, &mut others);
+        for c in &chunks {
+            strict.feed_events(c, &mut events);
+        }
+        strict.finish(&mut events);
+        prop_assert_eq!(
+            rejected.first().copied(),
+            Some((
+                long_at as u64,
+                Rejection::LongerThanKnown { id: info.id, len: payload.len() as u8, known: info.max_len }
+            ))
+        );
+        prop_assert!(others >= msgs.len(), "strict checks lost an ordinary frame");
     }
 }

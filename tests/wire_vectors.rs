@@ -5,14 +5,14 @@ mod common;
 
 use common::{Verdict, manifest, read_data};
 use mavtables::capture::{pcap, tlog};
-use mavtables::wire::{Frame, Parser};
+use mavtables::wire::{Checks, Frame, Parser};
 
 const FLIGHT_FRAMES: usize = 33_261;
 
 /// Strict verdict: the whole file is a sequence of zero or more valid frames (checksums
-/// checked), optionally all of one message id.
+/// checked, none longer than its message's known length), optionally all of one message id.
 fn strict_verdict(bytes: &[u8], only_id: Option<u32>) -> bool {
-    let mut parser = Parser::new();
+    let mut parser = Parser::with_checks(Checks::STRICT);
     let mut ids_ok = true;
     parser.feed(bytes, |f| {
         ids_ok &= only_id.is_none_or(|id| f.message_id() == id)

@@ -1,27 +1,49 @@
 //! Arbitrary bytes, fed in arbitrary chunks, never panic the frame parser, and every
-//! byte is accounted for (in a frame, skipped as junk, or held back).
+//! byte is accounted for (in a frame, skipped as junk, or held back), under the router's
+//! checks and under the strict ones. Every frame handed out (v2 frames longer than their
+//! message's known length included) can be read, printed and decoded.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use mavtables::wire::{Frame, Parser};
+use mavtables::dialect::decode;
+use mavtables::wire::{Checks, Frame, Parser};
+
+/// Feeds `data` in chunks of `chunk` bytes and checks the byte accounting.
+fn run(checks: Checks, chunk: usize, data: &[u8]) {
+    let mut parser = Parser::with_checks(checks);
+    let mut in_frames = 0u64;
+    let mut longer = 0u64;
+    let mut json = String::new();
+    for c in data.chunks(chunk) {
+        parser.feed(c, |f| {
+            in_frames += f.as_bytes().len() as u64;
+            longer += u64::from(f.is_longer_than_known());
+            assert_eq!(f.header().frame_len(), f.as_bytes().len());
+            let _ = (f.target(), f.signature(), f.to_string());
+            json.clear();
+            decode::write_json_fields(&mut json, f.info(), f.payload());
+        });
+    }
+    let held = parser.pending_len() as u64;
+    assert_eq!(in_frames + parser.stats().junk_bytes + held, parser.position());
+    parser.finish_frames(|f| {
+        in_frames += f.as_bytes().len() as u64;
+        longer += u64::from(f.is_longer_than_known());
+    });
+    assert_eq!(parser.pending_len(), 0);
+    assert_eq!(in_frames + parser.stats().junk_bytes, parser.position());
+    assert_eq!(parser.stats().longer_than_known, longer);
+    if checks.known_length {
+        assert_eq!(longer, 0, "strict checks hand out no longer-than-known frame");
+    }
+}
 
 fuzz_target!(|data: &[u8]| {
     let Some((&chunk, rest)) = data.split_first() else {
         return;
     };
     let chunk = usize::from(chunk).max(1);
-    let mut parser = Parser::new();
-    let mut in_frames = 0u64;
-    for c in rest.chunks(chunk) {
-        parser.feed(c, |f| {
-            in_frames += f.as_bytes().len() as u64;
-            let _ = (f.target(), f.signature(), f.to_string());
-        });
-    }
-    let held = parser.pending_len() as u64;
-    assert_eq!(in_frames + parser.stats().junk_bytes + held, parser.position());
-    parser.finish_frames(|f| in_frames += f.as_bytes().len() as u64);
-    assert_eq!(parser.pending_len(), 0);
-    assert_eq!(in_frames + parser.stats().junk_bytes, parser.position());
+    run(Checks::ROUTING, chunk, rest);
+    run(Checks::STRICT, chunk, rest);
     let _ = Frame::parse_exact(rest);
 });

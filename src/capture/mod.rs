@@ -9,7 +9,7 @@ pub mod tlog;
 
 use std::fmt;
 
-use crate::wire::frame::{MAGIC_V1, MAGIC_V2};
+use crate::wire::Version;
 
 /// The kinds of capture understood.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,9 +47,10 @@ pub fn detect(data: &[u8]) -> Format {
     if pcapng::is_pcapng(data) {
         return Format::PcapNg;
     }
-    let tlog_like = data.len() > 8
-        && matches!(data[8], MAGIC_V1 | MAGIC_V2)
-        && data[..8]
+    let ts = tlog::TIMESTAMP_LEN;
+    let tlog_like = data.len() > ts
+        && Version::from_magic(data[ts]).is_some()
+        && data[..ts]
             .try_into()
             .map(u64::from_be_bytes)
             .is_ok_and(|ts| TLOG_EPOCH_RANGE.contains(&ts));
@@ -121,7 +122,7 @@ pub fn for_each_unit<'a>(
                 let rec = rec.map_err(CaptureError::Tlog)?;
                 let unit = Unit {
                     timestamp_us: Some(rec.timestamp_us),
-                    offset: rec.offset + 8,
+                    offset: rec.offset + tlog::TIMESTAMP_LEN,
                     bytes: rec.frame,
                     source: None,
                 };
@@ -164,6 +165,7 @@ fn datagrams<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::header::MAGIC_V2;
 
     #[test]
     fn formats_are_told_from_content() {

@@ -2,9 +2,10 @@
 //! record is an 8-byte big-endian timestamp (microseconds since the UNIX epoch)
 //! followed by one raw MAVLink frame.
 
-use crate::wire::frame::{
-    HEADER_LEN_V1, HEADER_LEN_V2, INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2, SIGNATURE_LEN,
-};
+use crate::wire::{HeaderError, HeaderRepr};
+
+/// Length of the big-endian timestamp before each frame.
+pub const TIMESTAMP_LEN: usize = 8;
 
 /// One record of a tlog: when it was logged and the frame's bytes (not yet checked).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,23 +47,6 @@ impl std::fmt::Display for TlogError {
     }
 }
 
-/// Length of a frame from its header bytes, or `None` if `bytes` is too short to tell.
-fn frame_len(bytes: &[u8]) -> Option<usize> {
-    match *bytes.first()? {
-        MAGIC_V1 => Some(HEADER_LEN_V1 + *bytes.get(1)? as usize + 2),
-        MAGIC_V2 => {
-            let signed = *bytes.get(2)? & INCOMPAT_SIGNED != 0;
-            Some(
-                HEADER_LEN_V2
-                    + *bytes.get(1)? as usize
-                    + 2
-                    + if signed { SIGNATURE_LEN } else { 0 },
-            )
-        }
-        _ => None,
-    }
-}
-
 /// Iterator over the records of a tlog held in memory. After an error it stops.
 #[derive(Debug, Clone)]
 pub struct Records<'a> {
@@ -90,23 +74,22 @@ impl<'a> Iterator for Records<'a> {
         let offset = self.pos;
         let rest = &self.data[offset..];
         let result = (|| {
-            let ts: [u8; 8] = rest
-                .get(..8)
+            let ts: [u8; TIMESTAMP_LEN] = rest
+                .get(..TIMESTAMP_LEN)
                 .and_then(|b| b.try_into().ok())
                 .ok_or(TlogError::Truncated { offset })?;
-            let body = &rest[8..];
-            match body.first() {
-                None => return Err(TlogError::Truncated { offset }),
-                Some(&b) if b != MAGIC_V1 && b != MAGIC_V2 => {
-                    return Err(TlogError::BadMagic {
-                        offset: offset + 8,
-                        byte: b,
-                    });
-                }
-                Some(_) => {}
-            }
-            let len = frame_len(body).ok_or(TlogError::Truncated { offset })?;
-            let frame = body.get(..len).ok_or(TlogError::Truncated { offset })?;
+            let body = &rest[TIMESTAMP_LEN..];
+            // The frame is sized from its header; checking it is the parser's job.
+            let header = HeaderRepr::parse(body).map_err(|e| match e {
+                HeaderError::BadMagic(byte) => TlogError::BadMagic {
+                    offset: offset + TIMESTAMP_LEN,
+                    byte,
+                },
+                HeaderError::Truncated { .. } => TlogError::Truncated { offset },
+            })?;
+            let frame = body
+                .get(..header.frame_len())
+                .ok_or(TlogError::Truncated { offset })?;
             Ok(Record {
                 offset,
                 timestamp_us: u64::from_be_bytes(ts),
@@ -114,7 +97,7 @@ impl<'a> Iterator for Records<'a> {
             })
         })();
         match &result {
-            Ok(r) => self.pos += 8 + r.frame.len(),
+            Ok(r) => self.pos += TIMESTAMP_LEN + r.frame.len(),
             Err(_) => self.failed = true,
         }
         Some(result)

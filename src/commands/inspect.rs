@@ -2,6 +2,12 @@
 //!
 //! Pure over bytes: the caller reads the file and gives an output stream, so every mode
 //! is testable without touching the file system.
+//!
+//! Listing and decoding read a capture as the router does: a MAVLink 2 frame longer than
+//! its message's known length (a newer dialect's extension fields) is a frame, marked
+//! `longer than known` and counted in the summary, and decoding ignores its extra bytes.
+//! `--check` is strict: such a frame is a problem ("payload length N is longer than
+//! message #id's known M bytes"), as the file is not valid for this dialect.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -10,7 +16,7 @@ use std::io::{self, Write};
 use crate::address::{Address, Subnet};
 use crate::capture::{self, Unit};
 use crate::dialect::{self, decode};
-use crate::wire::{Frame, ParseEvents, Parser, ParserStats, Rejection, Version};
+use crate::wire::{Checks, Frame, ParseEvents, Parser, ParserStats, Rejection};
 
 use crate::utc;
 
@@ -100,19 +106,24 @@ impl Sink<'_> {
                 let _ = write!(line, "@{:<10}", self.base + f.offset());
             }
         }
-        let v = if f.version() == Version::V2 { 2 } else { 1 };
+        let v = f.version().number();
         let target = f
             .target()
             .map_or_else(|| "-".to_string(), |t| t.to_string());
         let _ = write!(
             line,
-            "  v{v}  seq {:>3}  {:>7} -> {:<7}  {} (#{})  len {}{}",
+            "  v{v}  seq {:>3}  {:>7} -> {:<7}  {} (#{})  len {}{}{}",
             f.seq(),
             f.source().to_string(),
             target,
             f.name(),
             f.message_id(),
             f.payload_len(),
+            if f.is_longer_than_known() {
+                "  longer than known"
+            } else {
+                ""
+            },
             if f.is_signed() { "  signed" } else { "" }
         );
         line.push('\n');
@@ -128,7 +139,7 @@ impl Sink<'_> {
             }
             None => line.push_str("null"),
         }
-        let v = if f.version() == Version::V2 { 2 } else { 1 };
+        let v = f.version().number();
         let _ = write!(
             line,
             ",\"version\":{v},\"seq\":{},\"sys\":{},\"comp\":{},\"msg_id\":{},\"name\":\"{}\",\"len\":{},\"signed\":{},\"target\":",
@@ -201,14 +212,12 @@ impl ParseEvents for Sink<'_> {
     }
 }
 
-fn add_stats(total: &mut ParserStats, s: &ParserStats) {
-    total.frames += s.frames;
-    total.bad_crc += s.bad_crc;
-    total.unknown_id += s.unknown_id;
-    total.bad_flags += s.bad_flags;
-    total.bad_length += s.bad_length;
-    total.truncated += s.truncated;
-    total.junk_bytes += s.junk_bytes;
+/// What the parser checks for these options: strict for `--check`, as a router otherwise.
+fn checks(opts: &Options) -> Checks {
+    Checks {
+        crc: !opts.no_crc,
+        known_length: opts.check,
+    }
 }
 
 /// Inspects one capture held in memory, writing per-frame output to `out` (nothing in
@@ -219,11 +228,7 @@ pub fn inspect(data: &[u8], opts: &Options, out: &mut dyn Write) -> io::Result<R
     let mut io_error = None;
     let read = capture::for_each_unit(format, data, |unit: Unit<'_>| {
         // A raw file is one stream; a tlog record or a datagram is a stream of its own.
-        let mut parser = if opts.no_crc {
-            Parser::without_crc_check()
-        } else {
-            Parser::new()
-        };
+        let mut parser = Parser::with_checks(checks(opts));
         let mut sink = Sink {
             opts,
             out: &mut *out,
@@ -236,7 +241,7 @@ pub fn inspect(data: &[u8], opts: &Options, out: &mut dyn Write) -> io::Result<R
         parser.feed_events(unit.bytes, &mut sink);
         parser.finish(&mut sink);
         io_error = sink.io_error.take();
-        add_stats(&mut report.stats, parser.stats());
+        report.stats += *parser.stats();
         io_error.is_none()
     });
     if let Some(e) = io_error {
@@ -270,11 +275,7 @@ pub fn write_summary(
         report.frames,
         report.selected
     )?;
-    writeln!(
-        out,
-        "  rejected: {} bad checksum, {} unknown id, {} bad flags, {} bad length, {} truncated; {} junk bytes",
-        s.bad_crc, s.unknown_id, s.bad_flags, s.bad_length, s.truncated, s.junk_bytes
-    )?;
+    writeln!(out, "  parser: {s}")?;
     if !report.per_message.is_empty() {
         writeln!(out, "  messages:")?;
         for (id, n) in &report.per_message {
@@ -292,7 +293,7 @@ pub fn write_summary(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::encode::{Header, encode_v1, encode_v2};
+    use crate::wire::encode::{Header, encode_v1, encode_v2, encode_v2_exact};
 
     fn sample() -> Vec<u8> {
         let mut s = Vec::new();
@@ -332,6 +333,80 @@ mod tests {
             "{summary}"
         );
         assert!(summary.contains("       1  PING (#4)\n"));
+    }
+
+    /// A HEARTBEAT, then a PING to 127.1 with 4 bytes beyond its known 14.
+    fn with_a_longer_frame() -> Vec<u8> {
+        let mut s = Vec::new();
+        let h = Header {
+            seq: 1,
+            system: 1,
+            component: 1,
+        };
+        encode_v2(h, 0, &[0, 0, 0, 0, 2, 3, 0, 4, 3], None, &mut s).expect("heartbeat");
+        let mut ping = [0u8; 18];
+        ping[8] = 5;
+        ping[12] = 127;
+        ping[13] = 1;
+        ping[14..].copy_from_slice(&[0xaa; 4]);
+        encode_v2_exact(h, 4, &ping, &mut s).expect("ping");
+        s
+    }
+
+    #[test]
+    fn longer_than_known_frames_are_listed_and_counted_but_fail_the_check() {
+        let data = with_a_longer_frame();
+        let mut out = Vec::new();
+        let r = inspect(&data, &Options::default(), &mut out).expect("in memory");
+        let text = String::from_utf8(out).expect("utf-8");
+        assert_eq!(
+            text.lines().nth(1),
+            Some(
+                "@21          v2  seq   1      1.1 -> 127.1    PING (#4)  len 18  longer than known"
+            )
+        );
+        assert_eq!(
+            (r.frames, r.stats.longer_than_known, &r.problem),
+            (2, 1, &None)
+        );
+        let mut summary = Vec::new();
+        write_summary("s", &data, &r, &mut summary).expect("in memory");
+        let summary = String::from_utf8(summary).expect("utf-8");
+        assert!(
+            summary.contains(
+                "\n  parser: 2 frames, 0 bad checksum, 0 unknown id, 0 bad flags, 0 bad length, \
+                 0 truncated, 1 longer than known, 0 junk bytes\n"
+            ),
+            "{summary}"
+        );
+        // JSON decodes the known fields and ignores the rest.
+        let json = Options {
+            json: true,
+            ..Options::default()
+        };
+        let mut out = Vec::new();
+        inspect(&data, &json, &mut out).expect("in memory");
+        let text = String::from_utf8(out).expect("utf-8");
+        assert!(
+            text.lines().nth(1).is_some_and(|l| l.ends_with(
+                "\"fields\":{\"time_usec\":0,\"seq\":5,\"target_system\":127,\"target_component\":1}}"
+            )),
+            "{text}"
+        );
+        // --check is strict.
+        let check = Options {
+            check: true,
+            ..Options::default()
+        };
+        let r = inspect(&data, &check, &mut Vec::new()).expect("in memory");
+        assert_eq!(
+            r.problem,
+            Some(Problem {
+                offset: 21,
+                reason: "payload length 18 is longer than message #4's known 14 bytes".into()
+            })
+        );
+        assert_eq!((r.frames, r.stats.bad_length), (1, 1));
     }
 
     #[test]

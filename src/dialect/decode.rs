@@ -1,5 +1,9 @@
 //! Decoding message fields by name from a payload, using the dialect's field layout,
 //! and rendering them as JSON.
+//!
+//! A payload may be shorter than the message (MAVLink 2 drops trailing zero bytes: the
+//! missing bytes read as zero) or longer (a newer dialect's extension fields: the bytes
+//! past the known fields are ignored). Neither panics.
 
 use std::fmt::Write as _;
 
@@ -44,7 +48,8 @@ fn element(field: &Field, payload: &[u8], i: usize) -> Value {
     }
 }
 
-/// Decodes `field` from `payload`. Bytes beyond the payload (v2 truncation) read as zero.
+/// Decodes `field` from `payload`. Bytes beyond the payload (v2 truncation) read as zero;
+/// bytes beyond the field are not looked at.
 pub fn decode_field(field: &Field, payload: &[u8]) -> Value {
     if field.array_len == 0 {
         return element(field, payload, 0);
@@ -220,5 +225,19 @@ mod tests {
             &Value::Array(vec![Value::Float(f64::NAN), Value::Float(2.0)]),
         );
         assert_eq!(out, "[null,2.0]");
+    }
+
+    #[test]
+    fn bytes_past_the_known_fields_are_ignored() {
+        // HEARTBEAT (9 known bytes) followed by 246 bytes of a newer dialect.
+        let info = by_name("HEARTBEAT").expect("known");
+        let known = [1u8, 0, 0, 0, 2, 3, 0x51, 4, 3];
+        let mut longer = known.to_vec();
+        longer.resize(255, 0xff);
+        let (mut a, mut b) = (String::new(), String::new());
+        write_json_fields(&mut a, info, &known);
+        write_json_fields(&mut b, info, &longer);
+        assert_eq!(a, b);
+        assert!(a.starts_with(r#"{"custom_mode":1,"type":2,"#), "{a}");
     }
 }

@@ -1,4 +1,4 @@
-//! What the router reports for logging, and the original's exact log texts (spec §7.2).
+//! What the router reports for logging, and the original's exact log texts.
 //!
 //! `Display` renders the message without the `YYYY-MM-DD HH:MM:SS  ` prefix, which the I/O
 //! layer adds; an event of [`Event::level`] L is printed iff the log level is at least L.
@@ -8,53 +8,10 @@ use std::sync::Arc;
 
 use super::link::LinkId;
 use crate::address::Address;
-use crate::wire::{Frame, Version};
 
-/// The parts of a packet its log text shows: `NAME (#id) from S.C[ to S.C] (vN.0)`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PacketSummary {
-    /// Message name.
-    pub name: &'static str,
-    /// Message id.
-    pub message_id: u32,
-    /// Sender's address.
-    pub source: Address,
-    /// Destination from the payload's target fields, if the message has them.
-    pub target: Option<Address>,
-    /// MAVLink version.
-    pub version: Version,
-}
-
-impl PacketSummary {
-    /// The summary of `frame`.
-    pub fn of(frame: &Frame<'_>) -> Self {
-        PacketSummary {
-            name: frame.name(),
-            message_id: frame.message_id(),
-            source: frame.source(),
-            target: frame.target(),
-            version: frame.version(),
-        }
-    }
-}
-
-impl fmt::Display for PacketSummary {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} (#{}) from {}",
-            self.name, self.message_id, self.source
-        )?;
-        if let Some(to) = self.target {
-            write!(f, " to {to}")?;
-        }
-        let v = match self.version {
-            Version::V1 => 1,
-            Version::V2 => 2,
-        };
-        write!(f, " (v{v}.0)")
-    }
-}
+/// The parts of a packet its log text shows; defined with the wire format, where
+/// [`Frame`](crate::wire::Frame)'s own log text is rendered by the same code.
+pub use crate::wire::PacketSummary;
 
 /// A link as named in an event.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -151,6 +108,7 @@ impl fmt::Display for Event {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::Version;
 
     fn link(id: u64, name: &str) -> LinkRef {
         LinkRef {
@@ -219,38 +177,5 @@ mod tests {
             "rejected HEARTBEAT (#0) from 127.1 (v2.0) source 127.0.0.1:5000 dest ./ttyS0"
         );
         assert_eq!(rejected.level(), 3);
-    }
-
-    #[test]
-    fn packet_text_prints_to_0_0_and_v1() {
-        assert_eq!(
-            ping(Some(Address::new(0, 0)), Version::V1).to_string(),
-            "PING (#4) from 192.168 to 0.0 (v1.0)"
-        );
-        assert_eq!(
-            ping(None, Version::V2).to_string(),
-            "PING (#4) from 192.168 (v2.0)"
-        );
-    }
-
-    #[test]
-    fn summary_of_a_frame_renders_like_the_frame() {
-        let mut bytes = Vec::new();
-        let payload = [0x55u8; 14];
-        crate::wire::encode::encode_v2(
-            crate::wire::encode::Header {
-                seq: 1,
-                system: 0,
-                component: 255,
-            },
-            4,
-            &payload,
-            None,
-            &mut bytes,
-        )
-        .expect("encode");
-        let frame = Frame::parse_exact(&bytes).expect("frame");
-        assert_eq!(PacketSummary::of(&frame).to_string(), frame.to_string());
-        assert_eq!(frame.to_string(), "PING (#4) from 0.255 to 85.85 (v2.0)");
     }
 }

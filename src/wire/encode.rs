@@ -6,7 +6,7 @@ use std::fmt;
 use crate::dialect::{self, MessageInfo};
 
 use super::crc::frame_checksum;
-use super::frame::{INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2};
+use super::header::{CHECKSUM_START, HeaderRepr, INCOMPAT_SIGNED, Version};
 use super::signing::{SecretKey, compute_signature};
 
 /// Header fields chosen by the sender.
@@ -77,8 +77,16 @@ fn lookup(id: u32, payload: &[u8]) -> Result<&'static MessageInfo, EncodeError> 
     Ok(info)
 }
 
+/// Appends the header of `repr` to `out`.
+fn push_header(out: &mut Vec<u8>, repr: &HeaderRepr) {
+    let start = out.len();
+    out.resize(start + repr.buffer_len(), 0);
+    repr.emit(&mut out[start..]);
+}
+
+/// Appends the checksum of the frame that starts at `out[start]` (header and payload).
 fn push_checksum(out: &mut Vec<u8>, start: usize, crc_extra: u8) {
-    let crc = frame_checksum(&out[start + 1..], crc_extra);
+    let crc = frame_checksum(&out[start + CHECKSUM_START..], crc_extra);
     out.extend_from_slice(&crc.to_le_bytes());
 }
 
@@ -94,14 +102,19 @@ pub fn encode_v1(
     let id8 = u8::try_from(id).map_err(|_| EncodeError::IdTooLargeForV1(id))?;
     let len = info.min_len as usize;
     let start = out.len();
-    out.extend_from_slice(&[
-        MAGIC_V1,
-        info.min_len,
-        header.seq,
-        header.system,
-        header.component,
-        id8,
-    ]);
+    push_header(
+        out,
+        &HeaderRepr {
+            version: Version::V1,
+            payload_len: info.min_len,
+            incompat_flags: 0,
+            compat_flags: 0,
+            seq: header.seq,
+            system: header.system,
+            component: header.component,
+            message_id: u32::from(id8),
+        },
+    );
     let given = payload.len().min(len);
     out.extend_from_slice(&payload[..given]);
     out.resize(out.len() + (len - given), 0);
@@ -127,19 +140,19 @@ pub fn encode_v2(
     } else {
         0
     };
-    let id_bytes = id.to_le_bytes();
-    out.extend_from_slice(&[
-        MAGIC_V2,
-        len as u8,
-        flags,
-        0,
-        header.seq,
-        header.system,
-        header.component,
-        id_bytes[0],
-        id_bytes[1],
-        id_bytes[2],
-    ]);
+    push_header(
+        out,
+        &HeaderRepr {
+            version: Version::V2,
+            payload_len: len as u8,
+            incompat_flags: flags,
+            compat_flags: 0,
+            seq: header.seq,
+            system: header.system,
+            component: header.component,
+            message_id: id,
+        },
+    );
     out.extend_from_slice(&payload[..len.min(payload.len())]);
     if payload.is_empty() {
         out.push(0);
@@ -152,4 +165,65 @@ pub fn encode_v2(
         out.extend_from_slice(&sig);
     }
     Ok(())
+}
+
+/// Appends an unsigned MAVLink 2 frame whose payload is exactly `payload`: no trailing
+/// zeros dropped and no length limit but the wire's 255 bytes, so it can be longer than
+/// the message's known length (as from a newer dialect's extension fields) or empty
+/// (which no receiver accepts). For tests and tools that need such frames.
+pub fn encode_v2_exact(
+    header: Header,
+    id: u32,
+    payload: &[u8],
+    out: &mut Vec<u8>,
+) -> Result<(), EncodeError> {
+    let info = dialect::by_id(id).ok_or(EncodeError::UnknownId(id))?;
+    let len = u8::try_from(payload.len()).map_err(|_| EncodeError::PayloadTooLong {
+        len: payload.len(),
+        max: u8::MAX as usize,
+    })?;
+    let start = out.len();
+    push_header(
+        out,
+        &HeaderRepr {
+            version: Version::V2,
+            payload_len: len,
+            incompat_flags: 0,
+            compat_flags: 0,
+            seq: header.seq,
+            system: header.system,
+            component: header.component,
+            message_id: id,
+        },
+    );
+    out.extend_from_slice(payload);
+    push_checksum(out, start, info.crc_extra);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Frame;
+
+    #[test]
+    fn exact_payloads_are_kept_as_given() {
+        let h = Header {
+            seq: 3,
+            system: 1,
+            component: 2,
+        };
+        let mut out = Vec::new();
+        encode_v2_exact(h, 0, &[0; 9], &mut out).expect("known id");
+        let f = Frame::parse_exact(&out).expect("valid");
+        assert_eq!(f.payload(), &[0; 9], "trailing zeros are not dropped");
+        assert_eq!(
+            encode_v2_exact(h, 0, &[0; 256], &mut out),
+            Err(EncodeError::PayloadTooLong { len: 256, max: 255 })
+        );
+        assert_eq!(
+            encode_v2_exact(h, 0x00ff_ffff, &[1], &mut out),
+            Err(EncodeError::UnknownId(0x00ff_ffff))
+        );
+    }
 }

@@ -1,158 +1,20 @@
-//! MAVLink frame layout and [`Frame`], a checked zero-copy view of one frame.
+//! [`Frame`], a checked zero-copy view of one frame; its header is read through the
+//! per-version layouts of [`super::header`].
 
 use std::fmt;
 
 use crate::address::Address;
-use crate::dialect::{self, MessageInfo};
+use crate::dialect::MessageInfo;
 
-use super::crc::frame_checksum;
-
-/// First byte of a MAVLink 1 frame.
-pub const MAGIC_V1: u8 = 0xFE;
-/// First byte of a MAVLink 2 frame.
-pub const MAGIC_V2: u8 = 0xFD;
-/// Header length of a MAVLink 1 frame, magic byte included.
-pub const HEADER_LEN_V1: usize = 6;
-/// Header length of a MAVLink 2 frame, magic byte included.
-pub const HEADER_LEN_V2: usize = 10;
-/// Length of the checksum that follows the payload.
-pub const CHECKSUM_LEN: usize = 2;
-/// Length of a MAVLink 2 signature block (link id, timestamp, signature).
-pub const SIGNATURE_LEN: usize = 13;
-/// The only incompatibility flag MAVLink 2 defines: the frame carries a signature.
-pub const INCOMPAT_SIGNED: u8 = 0x01;
-/// Longest possible frame: signed v2 with a 255-byte payload.
-pub const MAX_FRAME_LEN: usize = HEADER_LEN_V2 + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
-
-/// MAVLink protocol version of a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Version {
-    /// MAVLink 1 (magic 0xFE, 8-bit message ids).
-    V1,
-    /// MAVLink 2 (magic 0xFD, 24-bit ids, truncated payloads, optional signature).
-    V2,
-}
-
-impl Version {
-    /// Magic (start) byte of this version.
-    pub const fn magic(self) -> u8 {
-        match self {
-            Version::V1 => MAGIC_V1,
-            Version::V2 => MAGIC_V2,
-        }
-    }
-
-    /// Header length (magic byte included) of this version.
-    pub const fn header_len(self) -> usize {
-        match self {
-            Version::V1 => HEADER_LEN_V1,
-            Version::V2 => HEADER_LEN_V2,
-        }
-    }
-}
-
-/// Why a frame candidate was rejected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rejection {
-    /// The checksum (with CRC_EXTRA) does not match.
-    BadCrc,
-    /// The message id is not part of the dialect.
-    UnknownId(u32),
-    /// A v2 frame sets incompatibility flags this implementation does not understand.
-    BadFlags(u8),
-    /// The payload length is outside what the message allows.
-    BadLength {
-        /// Message id of the frame.
-        id: u32,
-        /// Payload length the frame claims.
-        len: u8,
-    },
-    /// The stream ended before the frame did.
-    Truncated {
-        /// Bytes the frame needs.
-        needed: usize,
-        /// Bytes there were.
-        have: usize,
-    },
-}
-
-impl fmt::Display for Rejection {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Rejection::BadCrc => write!(f, "bad checksum"),
-            Rejection::UnknownId(id) => {
-                write!(
-                    f,
-                    "message id #{id} is not part of the '{}' dialect",
-                    dialect::DIALECT_NAME
-                )
-            }
-            Rejection::BadFlags(flags) => write!(f, "unknown incompatibility flags 0x{flags:02x}"),
-            Rejection::BadLength { id, len } => {
-                write!(f, "payload length {len} is not valid for message #{id}")
-            }
-            Rejection::Truncated { needed, have } => {
-                write!(f, "truncated frame: needs {needed} bytes, {have} present")
-            }
-        }
-    }
-}
-
-/// Outcome of looking at bytes that start with a magic byte.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Candidate {
-    /// At least this many bytes in total are needed before a verdict.
-    NeedMore(usize),
-    /// The bytes do not start a valid frame.
-    Reject(Rejection),
-    /// A valid frame of this many bytes starts here.
-    Frame(usize, &'static MessageInfo),
-}
-
-/// Judges the frame candidate at the start of `s` (which must start with a magic byte).
-/// Header problems are reported as soon as the header is complete, so a bad frame costs
-/// no waiting for bytes that belong to the next one. With `check_crc` false only the
-/// structure is checked (for tools that inspect captures with damaged checksums).
-#[inline]
-pub(crate) fn check_candidate(s: &[u8], check_crc: bool) -> Candidate {
-    let v2 = s[0] == MAGIC_V2;
-    let header_len = if v2 { HEADER_LEN_V2 } else { HEADER_LEN_V1 };
-    if s.len() < header_len {
-        return Candidate::NeedMore(header_len);
-    }
-    let len = s[1];
-    let (id, signed) = if v2 {
-        let flags = s[2];
-        if flags & !INCOMPAT_SIGNED != 0 {
-            return Candidate::Reject(Rejection::BadFlags(flags));
-        }
-        (
-            u32::from_le_bytes([s[7], s[8], s[9], 0]),
-            flags & INCOMPAT_SIGNED != 0,
-        )
-    } else {
-        (u32::from(s[5]), false)
-    };
-    let Some(info) = dialect::by_id(id) else {
-        return Candidate::Reject(Rejection::UnknownId(id));
-    };
-    // v1 carries the whole base payload (extensions allowed); v2 may drop trailing zero
-    // bytes but never the first one.
-    let min = if v2 { 1 } else { info.min_len };
-    if len < min || len > info.max_len {
-        return Candidate::Reject(Rejection::BadLength { id, len });
-    }
-    let body = header_len + len as usize;
-    let total = body + CHECKSUM_LEN + if signed { SIGNATURE_LEN } else { 0 };
-    if s.len() < total {
-        return Candidate::NeedMore(total);
-    }
-    let wire = u16::from_le_bytes([s[body], s[body + 1]]);
-    if check_crc && frame_checksum(&s[1..body], info.crc_extra) != wire {
-        return Candidate::Reject(Rejection::BadCrc);
-    }
-    Candidate::Frame(total, info)
-}
+use super::check::{Candidate, Checks, check_candidate};
+use super::header::{HeaderRepr, Layout};
+use super::summary::PacketSummary;
+// Names that lived here before `header` and `check` existed stay reachable by this path.
+pub use super::check::Rejection;
+pub use super::header::{
+    CHECKSUM_LEN, HEADER_LEN_V1, HEADER_LEN_V2, INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN,
+    SIGNATURE_LEN, Version,
+};
 
 /// Why [`Frame::parse_exact`] refused a byte string.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -185,7 +47,7 @@ pub struct Frame<'a> {
 }
 
 impl<'a> Frame<'a> {
-    /// Builds a view over bytes already checked by [`check_candidate`].
+    /// Builds a view over bytes already checked by `check_candidate`.
     #[inline]
     pub(crate) fn new_unchecked(bytes: &'a [u8], info: &'static MessageInfo, offset: u64) -> Self {
         Frame {
@@ -196,6 +58,7 @@ impl<'a> Frame<'a> {
     }
 
     /// Checks that `bytes` is exactly one valid frame (checksum included) and views it.
+    /// As for a router, a v2 frame longer than its message's known length is valid.
     pub fn parse_exact(bytes: &'a [u8]) -> Result<Self, ExactError> {
         match bytes.first() {
             None => {
@@ -204,10 +67,10 @@ impl<'a> Frame<'a> {
                     have: 0,
                 }));
             }
-            Some(&b) if b != MAGIC_V1 && b != MAGIC_V2 => return Err(ExactError::BadMagic(b)),
+            Some(&b) if Version::from_magic(b).is_none() => return Err(ExactError::BadMagic(b)),
             Some(_) => {}
         }
-        match check_candidate(bytes, true) {
+        match check_candidate(bytes, Checks::ROUTING) {
             Candidate::NeedMore(needed) => Err(ExactError::Rejected(Rejection::Truncated {
                 needed,
                 have: bytes.len(),
@@ -254,68 +117,52 @@ impl<'a> Frame<'a> {
         }
     }
 
+    /// Where this frame's header fields sit.
     #[inline]
-    fn header_len(&self) -> usize {
-        self.version().header_len()
+    fn layout(&self) -> &'static Layout {
+        self.version().layout()
+    }
+
+    /// The header's fields, owned.
+    #[inline]
+    pub fn header(&self) -> HeaderRepr {
+        HeaderRepr::read(self.version(), self.bytes)
     }
 
     /// Payload length as sent (v2 payloads may be truncated).
     #[inline]
     pub fn payload_len(&self) -> usize {
-        self.bytes[1] as usize
+        self.layout().read_payload_len(self.bytes) as usize
     }
 
     /// Incompatibility flags (always 0 for v1).
     #[inline]
     pub fn incompat_flags(&self) -> u8 {
-        match self.version() {
-            Version::V1 => 0,
-            Version::V2 => self.bytes[2],
-        }
+        self.layout().read_incompat_flags(self.bytes)
     }
 
     /// Compatibility flags (always 0 for v1).
     #[inline]
     pub fn compat_flags(&self) -> u8 {
-        match self.version() {
-            Version::V1 => 0,
-            Version::V2 => self.bytes[3],
-        }
+        self.layout().read_compat_flags(self.bytes)
     }
 
     /// Packet sequence number.
     #[inline]
     pub fn seq(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[4]
-        } else {
-            self.bytes[2]
-        }
-    }
-
-    #[inline]
-    fn is_v2(&self) -> bool {
-        self.bytes[0] == MAGIC_V2
+        self.layout().read_seq(self.bytes)
     }
 
     /// Sender's system id.
     #[inline]
     pub fn system(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[5]
-        } else {
-            self.bytes[3]
-        }
+        self.layout().read_system(self.bytes)
     }
 
     /// Sender's component id.
     #[inline]
     pub fn component(&self) -> u8 {
-        if self.is_v2() {
-            self.bytes[6]
-        } else {
-            self.bytes[4]
-        }
+        self.layout().read_component(self.bytes)
     }
 
     /// Sender's address (`system.component`).
@@ -324,16 +171,24 @@ impl<'a> Frame<'a> {
         Address::new(self.system(), self.component())
     }
 
+    /// True for a v2 frame whose payload is longer than its message's known length
+    /// (extension fields this dialect does not know; decoding ignores the extra bytes).
+    #[inline]
+    pub fn is_longer_than_known(&self) -> bool {
+        self.payload_len() > self.info.max_len as usize
+    }
+
     /// Message id.
     #[inline]
     pub fn message_id(&self) -> u32 {
         self.info.id
     }
 
-    /// The payload as sent (possibly truncated in v2: missing bytes read as zero).
+    /// The payload as sent (possibly truncated in v2: missing bytes read as zero; or
+    /// longer than known: see [`Frame::is_longer_than_known`]).
     #[inline]
     pub fn payload(&self) -> &'a [u8] {
-        let start = self.header_len();
+        let start = self.layout().header_len;
         &self.bytes[start..start + self.payload_len()]
     }
 
@@ -348,7 +203,7 @@ impl<'a> Frame<'a> {
     /// The checksum as it appears on the wire.
     #[inline]
     pub fn checksum(&self) -> u16 {
-        let at = self.header_len() + self.payload_len();
+        let at = self.layout().header_len + self.payload_len();
         u16::from_le_bytes([self.bytes[at], self.bytes[at + 1]])
     }
 
@@ -383,6 +238,13 @@ impl<'a> Frame<'a> {
     }
 }
 
+impl From<&Frame<'_>> for HeaderRepr {
+    #[inline]
+    fn from(frame: &Frame<'_>) -> Self {
+        frame.header()
+    }
+}
+
 impl fmt::Debug for Frame<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Frame")
@@ -396,25 +258,10 @@ impl fmt::Debug for Frame<'_> {
     }
 }
 
-/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)`, as the original
-/// prints it (` to 0.0` included).
+/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
 impl fmt::Display for Frame<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} (#{}) from {}",
-            self.name(),
-            self.message_id(),
-            self.source()
-        )?;
-        if let Some(to) = self.target() {
-            write!(f, " to {to}")?;
-        }
-        let v = match self.version() {
-            Version::V1 => 1,
-            Version::V2 => 2,
-        };
-        write!(f, " (v{v}.0)")
+        fmt::Display::fmt(&PacketSummary::of(self), f)
     }
 }
 
@@ -446,6 +293,7 @@ impl<'a> Signature<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::crc::frame_checksum;
     use crate::wire::encode::{Header, encode_v1, encode_v2};
 
     fn v2(id: u32, payload: &[u8]) -> Vec<u8> {
@@ -554,12 +402,12 @@ mod tests {
             Some(ExactError::Rejected(Rejection::UnknownId(255)))
         );
         let mut too_long = good;
-        too_long[1] = 10; // HEARTBEAT is at most 9 bytes
+        too_long[1] = 10; // HEARTBEAT is 9 bytes: a longer frame needs one more byte
         assert_eq!(
             Frame::parse_exact(&too_long).err(),
-            Some(ExactError::Rejected(Rejection::BadLength {
-                id: 0,
-                len: 10
+            Some(ExactError::Rejected(Rejection::Truncated {
+                needed: 22,
+                have: 21
             }))
         );
         assert!(matches!(
@@ -578,5 +426,31 @@ mod tests {
             Frame::parse_exact(&bytes).err(),
             Some(ExactError::Rejected(Rejection::BadLength { id: 0, len: 8 }))
         );
+    }
+
+    #[test]
+    fn longer_than_known_v2_frames_parse_and_read_like_known_ones() {
+        // PING (14 bytes known) with 4 more: target fields and the header read as usual.
+        let mut payload = vec![0u8; 18];
+        payload[12] = 127;
+        payload[13] = 1;
+        payload[14..].copy_from_slice(&[9, 9, 9, 9]);
+        let mut bytes = Vec::new();
+        let header = Header {
+            seq: 7,
+            system: 3,
+            component: 4,
+        };
+        crate::wire::encode::encode_v2_exact(header, 4, &payload, &mut bytes).expect("encodable");
+        let f = Frame::parse_exact(&bytes).expect("valid: the checksum holds");
+        assert!(f.is_longer_than_known());
+        assert_eq!(f.payload_len(), 18);
+        assert_eq!(f.payload(), &payload[..]);
+        assert_eq!(f.as_bytes(), &bytes[..]);
+        assert_eq!(f.target(), Some(Address::new(127, 1)));
+        assert_eq!(f.to_string(), "PING (#4) from 3.4 to 127.1 (v2.0)");
+        let h = f.header();
+        assert_eq!((h.seq, h.payload_len, h.message_id), (7, 18, 4));
+        assert_eq!(h.frame_len(), bytes.len());
     }
 }

@@ -1,11 +1,17 @@
-//! The MAVLink wire format: frame layout, checksums, the streaming frame parser,
-//! encoding and signatures. Pure functions over bytes; no I/O.
+//! The MAVLink wire format: frame header layout, frame checks, checksums, the streaming
+//! frame parser, encoding and signatures. Pure functions over bytes; no I/O.
 
+pub mod check;
 pub mod crc;
 pub mod encode;
 pub mod frame;
+pub mod header;
 pub mod parser;
 pub mod signing;
+pub mod summary;
 
-pub use frame::{ExactError, Frame, Rejection, Signature, Version};
+pub use check::{Checks, Rejection};
+pub use frame::{ExactError, Frame, Signature};
+pub use header::{HeaderError, HeaderRepr, Layout, Version};
 pub use parser::{ParseEvents, Parser, ParserStats};
+pub use summary::PacketSummary;

@@ -7,23 +7,38 @@
 //! so a corrupt frame never hides a good frame behind it. Frames lying wholly inside
 //! the chunk being fed are handed out without copying; only a frame that straddles two
 //! chunks is assembled in a small internal buffer (at most one frame long).
+//!
+//! A MAVLink 2 frame longer than its message's known length is handed out when its
+//! checksum holds (a newer autopilot's extension fields; see [`super::check`]) and counted
+//! in [`ParserStats::longer_than_known`]; [`Checks::STRICT`] rejects it instead. The cost
+//! of this: a corrupt length byte on a known id is no longer rejected at the header, so
+//! the parser may hold up to one longest frame (280 bytes) before the checksum rejects
+//! the candidate and it rescans the bytes behind its start. On a stream that goes quiet
+//! meanwhile, [`Parser::finish`] (called by the I/O layer for a stale tail) releases them.
 
-use super::frame::{
-    Candidate, Frame, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN, Rejection, check_candidate,
-};
+use std::fmt;
+use std::ops::AddAssign;
+
+use super::check::{Candidate, Checks, Rejection, check_candidate};
+use super::frame::Frame;
+use super::header::{MAX_FRAME_LEN, Version};
 
 /// Running totals of what a parser has seen.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ParserStats {
     /// Valid frames handed out.
     pub frames: u64,
+    /// Of `frames`, v2 frames longer than their message's known length (accepted for
+    /// their good checksum: extension fields this dialect does not know).
+    pub longer_than_known: u64,
     /// Candidates rejected for a checksum mismatch.
     pub bad_crc: u64,
     /// Candidates rejected for a message id outside the dialect.
     pub unknown_id: u64,
     /// Candidates rejected for unknown incompatibility flags.
     pub bad_flags: u64,
-    /// Candidates rejected for a payload length the message does not allow.
+    /// Candidates rejected for a payload length the message does not allow (including,
+    /// under [`Checks::STRICT`], v2 frames longer than the message's known length).
     pub bad_length: u64,
     /// Candidates cut short by the end of the stream ([`Parser::finish`]).
     pub truncated: u64,
@@ -33,12 +48,21 @@ pub struct ParserStats {
 }
 
 impl ParserStats {
+    /// Counts a valid frame.
+    #[inline]
+    fn count_frame(&mut self, frame: &Frame<'_>) {
+        self.frames += 1;
+        if frame.is_longer_than_known() {
+            self.longer_than_known += 1;
+        }
+    }
+
     fn count(&mut self, why: Rejection) {
         match why {
             Rejection::BadCrc => self.bad_crc += 1,
             Rejection::UnknownId(_) => self.unknown_id += 1,
             Rejection::BadFlags(_) => self.bad_flags += 1,
-            Rejection::BadLength { .. } => self.bad_length += 1,
+            Rejection::BadLength { .. } | Rejection::LongerThanKnown { .. } => self.bad_length += 1,
             Rejection::Truncated { .. } => self.truncated += 1,
         }
     }
@@ -46,6 +70,51 @@ impl ParserStats {
     /// Total candidates rejected, whatever the reason.
     pub fn rejected(&self) -> u64 {
         self.bad_crc + self.unknown_id + self.bad_flags + self.bad_length + self.truncated
+    }
+}
+
+/// The counters on one line, the way the router's counters and `inspect`'s summary print
+/// them: `N frames, N bad checksum, N unknown id, N bad flags, N bad length, N truncated,
+/// N longer than known, N junk bytes`.
+impl fmt::Display for ParserStats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} frames, {} bad checksum, {} unknown id, {} bad flags, {} bad length, \
+             {} truncated, {} longer than known, {} junk bytes",
+            self.frames,
+            self.bad_crc,
+            self.unknown_id,
+            self.bad_flags,
+            self.bad_length,
+            self.truncated,
+            self.longer_than_known,
+            self.junk_bytes
+        )
+    }
+}
+
+/// Adds another parser's totals (e.g. one parser per datagram or per tlog record).
+impl AddAssign for ParserStats {
+    fn add_assign(&mut self, other: ParserStats) {
+        let ParserStats {
+            frames,
+            longer_than_known,
+            bad_crc,
+            unknown_id,
+            bad_flags,
+            bad_length,
+            truncated,
+            junk_bytes,
+        } = other;
+        self.frames += frames;
+        self.longer_than_known += longer_than_known;
+        self.bad_crc += bad_crc;
+        self.unknown_id += unknown_id;
+        self.bad_flags += bad_flags;
+        self.bad_length += bad_length;
+        self.truncated += truncated;
+        self.junk_bytes += junk_bytes;
     }
 }
 
@@ -71,7 +140,7 @@ impl<F: FnMut(Frame<'_>)> ParseEvents for OnFrame<F> {
 
 #[inline]
 fn is_magic(b: u8) -> bool {
-    b == MAGIC_V1 || b == MAGIC_V2
+    Version::from_magic(b).is_some()
 }
 
 /// A streaming MAVLink v1/v2 parser. One per byte stream (serial port, UDP sender, file).
@@ -84,8 +153,8 @@ pub struct Parser {
     /// Stream offset of the next byte to be fed.
     position: u64,
     stats: ParserStats,
-    /// False for structure-only parsing ([`Parser::without_crc_check`]).
-    check_crc: bool,
+    /// What is checked beyond structure.
+    checks: Checks,
 }
 
 impl Default for Parser {
@@ -95,24 +164,30 @@ impl Default for Parser {
 }
 
 impl Parser {
-    /// A parser at the start of a stream.
+    /// A parser at the start of a stream, with the checks a router makes
+    /// ([`Checks::ROUTING`]).
     pub fn new() -> Self {
+        Parser::with_checks(Checks::ROUTING)
+    }
+
+    /// A parser at the start of a stream, making `checks`.
+    pub fn with_checks(checks: Checks) -> Self {
         Parser {
             pending: Vec::with_capacity(MAX_FRAME_LEN),
             pending_offset: 0,
             position: 0,
             stats: ParserStats::default(),
-            check_crc: true,
+            checks,
         }
     }
 
     /// A parser that checks frame structure (magic, flags, known id, length limits) but
     /// not checksums. For inspecting captures; never for routing.
     pub fn without_crc_check() -> Self {
-        Parser {
-            check_crc: false,
-            ..Parser::new()
-        }
+        Parser::with_checks(Checks {
+            crc: false,
+            known_length: true,
+        })
     }
 
     /// Totals so far.
@@ -185,7 +260,7 @@ impl Parser {
                 self.skip_pending(skip, events);
                 continue;
             }
-            match check_candidate(&self.pending, self.check_crc) {
+            match check_candidate(&self.pending, self.checks) {
                 Candidate::NeedMore(total) => {
                     let take = (total - self.pending.len()).min(data.len());
                     self.pending.extend_from_slice(&data[..take]);
@@ -206,12 +281,10 @@ impl Parser {
                     }
                 }
                 Candidate::Frame(len, info) => {
-                    self.stats.frames += 1;
-                    events.frame(Frame::new_unchecked(
-                        &self.pending[..len],
-                        info,
-                        self.pending_offset,
-                    ));
+                    let frame =
+                        Frame::new_unchecked(&self.pending[..len], info, self.pending_offset);
+                    self.stats.count_frame(&frame);
+                    events.frame(frame);
                     self.pending.drain(..len);
                     self.pending_offset += len as u64;
                 }
@@ -251,10 +324,11 @@ impl Parser {
                 continue;
             }
             let rest = &data[i..];
-            match check_candidate(rest, self.check_crc) {
+            match check_candidate(rest, self.checks) {
                 Candidate::Frame(len, info) => {
-                    self.stats.frames += 1;
-                    events.frame(Frame::new_unchecked(&rest[..len], info, base + i as u64));
+                    let frame = Frame::new_unchecked(&rest[..len], info, base + i as u64);
+                    self.stats.count_frame(&frame);
+                    events.frame(frame);
                     i += len;
                 }
                 Candidate::Reject(why) => {
@@ -277,7 +351,21 @@ impl Parser {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::encode::{Header, encode_v1, encode_v2};
+    use crate::wire::encode::{Header, encode_v1, encode_v2, encode_v2_exact};
+
+    /// A v2 HEARTBEAT with `extra` bytes beyond its known 9 (a newer dialect's fields).
+    fn longer_heartbeat(seq: u8, extra: usize) -> Vec<u8> {
+        let mut payload = vec![0, 0, 0, 0, 2, 3, 0x51, 4, 3];
+        payload.extend((0..extra).map(|i| i as u8 + 1));
+        let mut out = Vec::new();
+        let header = Header {
+            seq,
+            system: 1,
+            component: 1,
+        };
+        encode_v2_exact(header, 0, &payload, &mut out).expect("encodable");
+        out
+    }
 
     fn heartbeat(seq: u8) -> Vec<u8> {
         let mut out = Vec::new();
@@ -328,8 +416,15 @@ mod tests {
     #[test]
     fn corrupt_length_does_not_swallow_the_next_frame() {
         // The original trusted the length byte: a corrupt one ate the following frames.
-        let mut bad = heartbeat(1);
-        bad[1] = 200; // length beyond HEARTBEAT's: rejected at the header
+        // A v1 length beyond the message's is rejected at the header.
+        let mut bad = Vec::new();
+        let h = Header {
+            seq: 1,
+            system: 1,
+            component: 1,
+        };
+        encode_v1(h, 0, &[0, 0, 0, 0, 2, 3, 0x51, 4, 3], &mut bad).expect("encodable");
+        bad[1] = 200;
         let mut stream = bad.clone();
         stream.extend(heartbeat(2));
         let mut p = Parser::new();
@@ -340,6 +435,38 @@ mod tests {
             log.rejected,
             [(0, Rejection::BadLength { id: 0, len: 200 })]
         );
+    }
+
+    #[test]
+    fn a_corrupt_v2_length_waits_for_the_checksum_then_yields() {
+        // A v2 length beyond HEARTBEAT's may be a longer frame from a newer dialect: the
+        // parser waits for the checksum, which fails, and then finds the next frame.
+        let mut bad = heartbeat(1);
+        bad[1] = 20;
+        let mut stream = bad.clone();
+        stream.extend(heartbeat(2));
+        stream.extend(heartbeat(3));
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&stream, &mut log);
+        assert_eq!(log.rejected, [(0, Rejection::BadCrc)]);
+        assert_eq!(log.frames, [(21, 2), (42, 3)]);
+        // Under strict checks the header alone rejects it.
+        let mut p = Parser::with_checks(Checks::STRICT);
+        let mut log = Log::default();
+        p.feed_events(&bad, &mut log);
+        assert_eq!(
+            log.rejected,
+            [(
+                0,
+                Rejection::LongerThanKnown {
+                    id: 0,
+                    len: 20,
+                    known: 9
+                }
+            )]
+        );
+        assert_eq!(p.pending_len(), 0, "no waiting");
     }
 
     #[test]
@@ -444,5 +571,119 @@ mod tests {
         });
         use crate::wire::Version;
         assert_eq!(seen, [(Version::V1, false, 17), (Version::V2, true, 34)]);
+    }
+
+    #[test]
+    fn a_longer_than_known_v2_frame_is_handed_out_and_counted() {
+        let long = longer_heartbeat(1, 6);
+        let mut stream = long.clone();
+        stream.extend(heartbeat(2));
+        // Whole, and split at every point: the same frames, the exact bytes.
+        for chunk in 1..=stream.len() {
+            let mut p = Parser::new();
+            let mut got = Vec::new();
+            for c in stream.chunks(chunk) {
+                p.feed(c, |f| {
+                    got.push((f.as_bytes().to_vec(), f.is_longer_than_known()))
+                });
+            }
+            assert_eq!(
+                got,
+                [(long.clone(), true), (heartbeat(2), false)],
+                "chunk size {chunk}"
+            );
+            assert_eq!(
+                (p.stats().frames, p.stats().longer_than_known),
+                (2, 1),
+                "chunk size {chunk}"
+            );
+            assert_eq!(p.stats().rejected(), 0);
+        }
+    }
+
+    #[test]
+    fn a_longer_than_known_v2_frame_needs_its_checksum() {
+        let mut bad = longer_heartbeat(1, 6);
+        let last = bad.len() - 1;
+        bad[last] ^= 0x01;
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&bad, &mut log);
+        assert_eq!(log.rejected, [(0, Rejection::BadCrc)]);
+        assert!(log.frames.is_empty());
+        assert_eq!((p.stats().bad_crc, p.stats().longer_than_known), (1, 0));
+        // Without checksum checks nothing vouches for the length: rejected at the header.
+        let good = longer_heartbeat(1, 6);
+        let mut p = Parser::without_crc_check();
+        let mut log = Log::default();
+        p.feed_events(&good, &mut log);
+        assert!(log.frames.is_empty());
+        assert!(matches!(
+            log.rejected[0],
+            (
+                0,
+                Rejection::LongerThanKnown {
+                    len: 15,
+                    known: 9,
+                    ..
+                }
+            )
+        ));
+        assert_eq!(p.stats().bad_length, 1);
+    }
+
+    #[test]
+    fn a_longer_v1_frame_is_still_a_bad_length() {
+        // A v1 HEARTBEAT claiming 10 bytes, with a checksum that holds for them.
+        let mut bytes = Vec::new();
+        let repr = crate::wire::HeaderRepr {
+            version: crate::wire::Version::V1,
+            payload_len: 10,
+            incompat_flags: 0,
+            compat_flags: 0,
+            seq: 1,
+            system: 1,
+            component: 1,
+            message_id: 0,
+        };
+        bytes.resize(repr.buffer_len(), 0);
+        repr.emit(&mut bytes);
+        bytes.extend([0u8; 10]);
+        let crc = crate::wire::crc::frame_checksum(&bytes[1..], 50);
+        bytes.extend(crc.to_le_bytes());
+        let mut p = Parser::new();
+        let mut log = Log::default();
+        p.feed_events(&bytes, &mut log);
+        assert!(log.frames.is_empty());
+        assert_eq!(
+            log.rejected[0],
+            (0, Rejection::BadLength { id: 0, len: 10 })
+        );
+    }
+
+    #[test]
+    fn counters_print_on_one_line_and_add_up() {
+        let mut a = ParserStats {
+            frames: 10,
+            longer_than_known: 1,
+            bad_crc: 2,
+            unknown_id: 3,
+            bad_flags: 4,
+            bad_length: 5,
+            truncated: 6,
+            junk_bytes: 7,
+        };
+        assert_eq!(
+            a.to_string(),
+            "10 frames, 2 bad checksum, 3 unknown id, 4 bad flags, 5 bad length, \
+             6 truncated, 1 longer than known, 7 junk bytes"
+        );
+        a += a;
+        assert_eq!(
+            a.to_string(),
+            "20 frames, 4 bad checksum, 6 unknown id, 8 bad flags, 10 bad length, \
+             12 truncated, 2 longer than known, 14 junk bytes"
+        );
+        assert_eq!(a.rejected(), 4 + 6 + 8 + 10 + 12);
     }
 }

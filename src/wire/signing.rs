@@ -6,7 +6,8 @@
 
 use sha2::{Digest, Sha256};
 
-use super::frame::{Frame, SIGNATURE_LEN};
+use super::frame::Frame;
+use super::header::SIGNATURE_LEN;
 
 /// A 32-byte MAVLink 2 signing key.
 pub type SecretKey = [u8; 32];
