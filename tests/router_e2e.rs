@@ -1237,6 +1237,31 @@ fn listener_and_sender(tag: &str) -> (Scratch, Router, UdpPeer, UdpPeer) {
     (s, router, a, b)
 }
 
+/// A MAVLink 2 frame longer than its message's known length (extension fields of a newer
+/// dialect) whose checksum holds is forwarded byte for byte and counted as "longer than
+/// known"; the same frame with a bad checksum is not.
+#[test]
+fn a_frame_longer_than_known_is_forwarded_unchanged() {
+    let (_s, router, a, b) = listener_and_sender("longer");
+    let header = Header {
+        seq: 9,
+        system: 1,
+        component: 1,
+    };
+    // ATTITUDE is 28 bytes; 8 more of an extension this dialect does not know.
+    let mut longer = Vec::new();
+    mavtables::wire::encode::encode_v2_exact(header, 30, &[0x33; 36], &mut longer).expect("encode");
+    let mut broken = longer.clone();
+    let last = broken.len() - 1;
+    broken[last] ^= 0xff;
+    b.send(&broken);
+    b.send(&longer);
+    assert_eq!(a.recv(1, 5 * SECOND), [longer]);
+    let counters = router.stop().stderr.join("\n");
+    assert!(counters.contains(", 1 longer than known,"), "{counters}");
+    assert!(counters.contains(" 1 bad checksum,"), "{counters}");
+}
+
 /// A burst reaches every receiver as one datagram per frame, in order, whatever the
 /// frames' lengths. (The router hands runs of equal-length datagrams for one receiver to
 /// the kernel as one UDP GSO message; the receivers here are plain sockets, so this

@@ -81,18 +81,10 @@ pub struct InterfaceReport<'a> {
 
 impl fmt::Display for InterfaceReport<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let p = self.parser;
         write!(
             f,
-            "{}: {} frames, {} bad checksum, {} unknown id, {} bad flags, {} bad length, {} junk bytes, {} I/O errors",
-            self.label,
-            p.frames,
-            p.bad_crc,
-            p.unknown_id,
-            p.bad_flags,
-            p.bad_length,
-            p.junk_bytes,
-            self.io_errors
+            "{}: {}, {} I/O errors",
+            self.label, self.parser, self.io_errors
         )
     }
 }
