@@ -1,4 +1,4 @@
-//! UDP forwarding benchmark (issue 5, item 8): a load generator and sinks of our own,
+//! UDP forwarding benchmark: a load generator and sinks of our own,
 //! on 127.0.0.1 only.
 //!
 //! Run: `cargo bench --bench forwarding` (about 2–3 minutes), or
@@ -68,7 +68,7 @@ const LADDER: [f64; 10] = [
 /// hence no finer ticks at high rates.)
 const TICK: Duration = Duration::from_millis(1);
 const SINGLE_FRAME_RATE: f64 = 10e3;
-/// Rate of the latency runs (issue 5: latency at 10k frames/s).
+/// Rate of the latency runs: 10k frames/s, a busy telemetry link.
 const LATENCY_RATE: f64 = 10e3;
 /// Fixed rate at which CPU time per frame is measured.
 const CPU_RATE: f64 = 50e3;

@@ -1,7 +1,7 @@
-//! End-to-end tests of the live router (issue 5 item 7): the real `mavtables` binary,
+//! End-to-end tests of the live router: the real `mavtables` binary,
 //! real UDP sockets on 127.0.0.1, real pseudo-terminals for serial links, and pymavlink
 //! (`tests/py/peer.py`) as the independent peer. The scenarios are those of the
-//! original's integration suite (spec §8.2) plus device loss, garbage input, bitrate
+//! original's integration suite plus device loss, garbage input, bitrate
 //! accuracy and shutdown.
 //!
 //! Synchronisation is on events, never on sleeps: the router's UDP ports being bound,
@@ -343,7 +343,7 @@ fn multiple_senders_at_once() {
 }
 
 // ----------------------------------------------------------------------------------------
-// 3 and 4. Routing (spec §8.2 #5) with the log at levels 1, 2 and 3 (§8.2 #10)
+// 3 and 4. Routing with the log at levels 1, 2 and 3
 
 const ROUTING: &str = include_str!("data/config/routing_chains.conf");
 
@@ -361,8 +361,8 @@ const ROUTING_SCRIPT: [&str; 10] = [
     "MISSION_REQUEST_LIST@192.168",
 ];
 
-/// The level-3 log of the routing run, written from the spec's formats (§7.2) and
-/// semantics (§1.2–§1.3, §2): links in creation order (the serial port, then 127.1,
+/// The level-3 log of the routing run, written from the original's log formats and
+/// routing rules: links in creation order (the serial port, then 127.1,
 /// 192.168 and 10.10 on UDP), UDP link names without their port.
 fn routing_log(dev: &str, v: &str) -> Vec<String> {
     let u = "127.0.0.1";
@@ -433,7 +433,7 @@ fn routing_log(dev: &str, v: &str) -> Vec<String> {
     log
 }
 
-/// The lowest log level at which a line is printed (spec §7.2).
+/// The lowest log level at which a line is printed.
 fn line_level(line: &str) -> u8 {
     if line.starts_with("new component") {
         1
@@ -553,7 +553,7 @@ fn routing_v1_with_log_level_3() {
 }
 
 // ----------------------------------------------------------------------------------------
-// 3. Priority, preload, component-broadcast fallback (spec §8.2 #6–#8)
+// 3. Priority, preload, component-broadcast fallback
 
 /// A UDP listener behind `max_bitrate 65536`: 50 ENCAPSULATED_DATA (+1), 100 ATTITUDE
 /// (−1) and 100 GLOBAL_POSITION_INT (0) from a UDP sender and 50 ENCAPSULATED_DATA from

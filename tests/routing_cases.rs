@@ -1,4 +1,5 @@
-//! Every routing case of spec §1.3 and §2.3, on the routing core with an injected clock.
+//! Every routing case of the original (broadcast, system broadcast, targeted, component
+//! fallback, loop prevention, priorities), on the routing core with an injected clock.
 
 mod routing;
 

@@ -1,4 +1,4 @@
-//! The original's integration scenarios (spec §8.2: routing, priority, preload, component
+//! The original's integration scenarios (routing, priority, preload, component
 //! broadcast fallback) rebuilt on the routing core, plus expiry over time.
 
 mod routing;

@@ -1,5 +1,5 @@
-//! The per-link decision of spec §1.3: which destination addresses a packet is filtered
-//! for on one link, and what comes of it.
+//! The per-link decision, as the original makes it: which destination addresses a
+//! packet is filtered for on one link, and what comes of it.
 
 use super::pool::AddressPool;
 use super::time::Timestamp;

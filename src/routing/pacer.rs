@@ -6,7 +6,7 @@
 //! most `rate·T + burst` bits leave (a burst of at most one datagram), and a sender that
 //! is woken slightly late loses nothing of the long-run rate as long as the lateness fits
 //! in the bucket's headroom. Arithmetic is exact integer time·rate products, so there is
-//! no drift however long it runs (the original sent about twice the rate; decisions row 5).
+//! no drift however long it runs (the original sent about twice the rate).
 //!
 //! Timer precision: the bucket's headroom (280 bytes minus the datagram) absorbs late
 //! wake-ups. A 267-byte frame at 262 144 bit/s leaves only 0.4 ms of it: woken up to 0.5 ms

@@ -54,6 +54,20 @@ fn count_lines(text: &[u8]) -> u64 {
 }
 
 impl State {
+    /// Nothing pending yet, room for `capacity` bytes.
+    fn new(capacity: usize, notice: Notice) -> Self {
+        State {
+            pending: Vec::new(),
+            capacity,
+            dropped: 0,
+            notice,
+            busy: false,
+            waiting: false,
+            writerless: false,
+            closed: false,
+        }
+    }
+
     /// Keeps the lines of `text` that fit (a prefix of them, the notice for earlier drops
     /// in front); returns how many lines were dropped.
     fn accept(&mut self, text: &[u8]) -> u64 {
@@ -117,16 +131,7 @@ impl Sink {
         notice: Notice,
     ) -> Sink {
         let shared = Arc::new(Shared {
-            state: Mutex::new(State {
-                pending: Vec::new(),
-                capacity,
-                dropped: 0,
-                notice,
-                busy: false,
-                waiting: false,
-                writerless: false,
-                closed: false,
-            }),
+            state: Mutex::new(State::new(capacity, notice)),
             has_text: Condvar::new(),
             written: Condvar::new(),
         });
@@ -237,16 +242,7 @@ mod tests {
     }
 
     fn state(capacity: usize) -> State {
-        State {
-            pending: Vec::new(),
-            capacity,
-            dropped: 0,
-            notice,
-            busy: false,
-            waiting: false,
-            writerless: false,
-            closed: false,
-        }
+        State::new(capacity, notice)
     }
 
     #[test]
