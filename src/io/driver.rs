@@ -29,10 +29,18 @@ pub trait Driver {
     /// The descriptor to watch, while open.
     fn fd(&self) -> Option<RawFd>;
 
-    /// Opens the device when the core asks ([`crate::routing::Notice::Open`]). Sockets
-    /// that are open from the start need not override it.
-    fn open(&mut self) -> io::Result<()> {
-        Ok(())
+    /// Opens the device or connects when the core asks ([`crate::routing::Notice::Open`]):
+    /// `Ok(true)` when it is open now, `Ok(false)` when it is still connecting (the driver
+    /// then tells the core itself, from [`Driver::flush`], once it knows). Sockets that
+    /// are open from the start need not override it.
+    fn open(&mut self, _engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
+        Ok(true)
+    }
+
+    /// A driver for a connection this one accepted (a TCP server), to be added to the
+    /// loop; called after every [`Driver::receive`] until it gives `None`.
+    fn take_accepted(&mut self) -> Option<Box<dyn Driver>> {
+        None
     }
 
     /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.

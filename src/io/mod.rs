@@ -4,17 +4,21 @@
 //!
 //! - `runtime`: the loop — wait, read, core, send, arm the one timer;
 //! - `driver`: what every transport driver does for the loop;
-//! - `udp`, `serial`: the drivers;
+//! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
+//!   `resolve`: host names of clients);
 //! - `log`: log lines and messages, written without ever blocking the loop;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod log;
+mod resolve;
 mod runtime;
 mod serial;
+mod stream;
 #[allow(unsafe_code)]
 mod sys;
+mod tcp;
 mod udp;
 
 pub use runtime::run;

@@ -21,6 +21,7 @@ use super::driver::{Driver, Progress};
 use super::log::{self, Logger};
 use super::serial::SerialDriver;
 use super::sys::TimerFd;
+use super::tcp::{self, TcpListenerDriver, TcpStreamDriver};
 use super::udp::UdpDriver;
 use crate::config::{Config, Interface};
 use crate::dialect::DIALECT_NAME;
@@ -109,10 +110,47 @@ impl Runtime {
         let Some(slot) = self.slots.get_mut(key) else {
             return;
         };
-        match slot.driver.receive(&mut self.engine, now) {
+        let progress = slot.driver.receive(&mut self.engine, now);
+        let mut accepted = Vec::new();
+        while let Some(driver) = slot.driver.take_accepted() {
+            accepted.push(driver);
+        }
+        match progress {
             Progress::More => slot.ready = true,
             Progress::Lost => self.close(key),
             Progress::Done | Progress::Blocked => slot.ready = false,
+        }
+        for driver in accepted {
+            // Bytes may have arrived with the connection: read at once.
+            self.add(driver, true);
+        }
+    }
+
+    /// Puts `driver` in the loop and watches its descriptor.
+    fn add(&mut self, driver: Box<dyn Driver>, ready: bool) {
+        let interface = driver.interface();
+        let key = self.slots.insert(Slot {
+            driver,
+            registered: None,
+            watching_writes: false,
+            ready,
+        });
+        if self.slot_of.len() <= interface.0 {
+            self.slot_of.resize(interface.0 + 1, usize::MAX);
+        }
+        self.slot_of[interface.0] = key;
+        self.watch(key);
+    }
+
+    /// Takes the driver of a closed connection out of the loop.
+    fn remove(&mut self, interface: InterfaceId) {
+        let Some(key) = self.slot_of.get_mut(interface.0).map(std::mem::take) else {
+            return;
+        };
+        self.close(key);
+        self.slots.try_remove(key);
+        if let Some(k) = self.slot_of.get_mut(interface.0) {
+            *k = usize::MAX;
         }
     }
 
@@ -148,6 +186,7 @@ impl Runtime {
                 )),
                 Notice::LinkAdded { .. } | Notice::LinkRemoved { .. } => {}
                 Notice::Open(interface) => self.open(interface, now),
+                Notice::Closed(interface) => self.remove(interface),
             }
         }
     }
@@ -159,12 +198,17 @@ impl Runtime {
         let Some(slot) = self.slots.get_mut(key) else {
             return;
         };
-        match slot.driver.open() {
-            Ok(()) => {
+        match slot.driver.open(&mut self.engine, now) {
+            Ok(true) => {
                 self.engine.stream_opened(interface, now);
                 slot.watching_writes = false;
                 // Bytes may already be waiting; an edge may have been missed.
                 slot.ready = true;
+                self.watch(key);
+            }
+            Ok(false) => {
+                // Connecting: writable (or an error) says how it went.
+                slot.watching_writes = true;
                 self.watch(key);
             }
             Err(e) => self.engine.stream_open_failed(interface, now, &e),
@@ -315,19 +359,44 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                 &s.device,
                 &s.preload,
                 Some(s.baudrate),
+                s.max_bitrate.unwrap_or(0),
                 Timestamp::ZERO,
             );
             drivers.push(Box::new(SerialDriver::new(s, id)));
         }
     }
     for iface in &config.interfaces {
-        if let Interface::Udp(u) = iface {
-            let label = format!("udp {}:{}", u.address, u.port);
-            let id = engine.add_datagram_interface(label, u.max_bitrate.unwrap_or(0));
-            let driver = UdpDriver::open(u, id).map_err(|e| {
-                io::Error::new(e.kind(), format!("udp {}:{}: {e}", u.address, u.port))
-            })?;
-            drivers.push(Box::new(driver));
+        match iface {
+            Interface::Serial(_) => {}
+            Interface::Udp(u) => {
+                let label = UdpDriver::label(u);
+                let rate = u.max_bitrate.unwrap_or(0);
+                let id = match &u.connect {
+                    None => engine.add_datagram_interface(label, rate, u.peers.clone()),
+                    Some(remote) => engine.add_datagram_client(
+                        label,
+                        &remote.to_string(),
+                        rate,
+                        Timestamp::ZERO,
+                    ),
+                };
+                drivers.push(Box::new(UdpDriver::new(u, id)?));
+            }
+            Interface::Tcp(t) => {
+                let label = tcp::label(t);
+                let rate = t.max_bitrate.unwrap_or(0);
+                match &t.connect {
+                    None => {
+                        let id = engine.add_listener(label, t.peers.clone());
+                        drivers.push(Box::new(TcpListenerDriver::bind(t, id)?));
+                    }
+                    Some(remote) => {
+                        let name = format!("tcp:{remote}");
+                        let id = engine.add_stream_client(label, &name, rate, Timestamp::ZERO);
+                        drivers.push(Box::new(TcpStreamDriver::client(remote, id)));
+                    }
+                }
+            }
         }
     }
     let timer = TimerFd::new()?;
@@ -351,18 +420,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
         start,
     };
     for driver in drivers {
-        let interface = driver.interface();
-        let key = rt.slots.insert(Slot {
-            driver,
-            registered: None,
-            watching_writes: false,
-            ready: false,
-        });
-        if rt.slot_of.len() <= interface.0 {
-            rt.slot_of.resize(interface.0 + 1, usize::MAX);
-        }
-        rt.slot_of[interface.0] = key;
-        rt.watch(key);
+        rt.add(driver, false);
     }
     // Preloaded addresses are logged before anything else happens.
     rt.handle_notices(Timestamp::ZERO);

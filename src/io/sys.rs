@@ -1,8 +1,8 @@
 //! The only `unsafe` code of mavtables: thin wrappers over the libc calls that the
 //! standard library and mio do not offer.
 //!
-//! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams in one system
-//!   call (IPv4 only: mavtables binds IPv4 sockets, as the original did), sending runs
+//! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams (IPv4 or IPv6)
+//!   in one system call, sending runs
 //!   of equal datagrams to one destination as one UDP GSO message (`UDP_SEGMENT`);
 //! - `SO_RCVBUFFORCE` / `SO_SNDBUFFORCE`: socket buffers beyond the system's limit
 //!   when the process is privileged;
@@ -19,35 +19,81 @@
 
 use std::io;
 use std::mem::MaybeUninit;
-use std::net::{Ipv4Addr, SocketAddrV4};
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, SocketAddrV4, SocketAddrV6};
 use std::os::fd::{AsRawFd, RawFd};
 
 /// Largest batch handed to one `recvmmsg` / `sendmmsg` call.
 pub const MAX_BATCH: usize = 64;
 
-fn to_sockaddr(addr: SocketAddrV4) -> libc::sockaddr_in {
-    // SAFETY: sockaddr_in is plain old data; all-zero is a valid value.
-    let mut sa: libc::sockaddr_in = unsafe { MaybeUninit::zeroed().assume_init() };
-    sa.sin_family = libc::AF_INET as libc::sa_family_t;
-    sa.sin_port = addr.port().to_be();
-    sa.sin_addr = libc::in_addr {
-        s_addr: u32::from(*addr.ip()).to_be(),
-    };
-    sa
+/// Room for an IPv4 or IPv6 socket address as the kernel reads and writes it.
+type RawAddr = libc::sockaddr_in6;
+
+const RAW_ADDR_LEN: libc::socklen_t = std::mem::size_of::<RawAddr>() as _;
+
+/// Writes `addr` into `raw` the way the kernel reads it; returns its length.
+fn to_raw(addr: SocketAddr, raw: &mut RawAddr) -> libc::socklen_t {
+    match addr {
+        SocketAddr::V4(a) => {
+            // SAFETY: sockaddr_in is plain old data; all-zero is a valid value.
+            let mut sa: libc::sockaddr_in = unsafe { MaybeUninit::zeroed().assume_init() };
+            sa.sin_family = libc::AF_INET as libc::sa_family_t;
+            sa.sin_port = a.port().to_be();
+            sa.sin_addr = libc::in_addr {
+                s_addr: u32::from(*a.ip()).to_be(),
+            };
+            // SAFETY: a sockaddr_in (16 bytes, alignment 4) fits at the start of a
+            // sockaddr_in6 (28 bytes, alignment 4), which `raw` exclusively borrows.
+            unsafe { std::ptr::write((raw as *mut RawAddr).cast::<libc::sockaddr_in>(), sa) };
+            std::mem::size_of::<libc::sockaddr_in>() as _
+        }
+        SocketAddr::V6(a) => {
+            // SAFETY: sockaddr_in6 is plain old data; all-zero is a valid value.
+            let mut sa: libc::sockaddr_in6 = unsafe { MaybeUninit::zeroed().assume_init() };
+            sa.sin6_family = libc::AF_INET6 as libc::sa_family_t;
+            sa.sin6_port = a.port().to_be();
+            sa.sin6_flowinfo = a.flowinfo();
+            sa.sin6_addr = libc::in6_addr {
+                s6_addr: a.ip().octets(),
+            };
+            sa.sin6_scope_id = a.scope_id();
+            *raw = sa;
+            RAW_ADDR_LEN
+        }
+    }
 }
 
-fn from_sockaddr(sa: &libc::sockaddr_in) -> Option<SocketAddrV4> {
-    (sa.sin_family == libc::AF_INET as libc::sa_family_t).then(|| {
-        SocketAddrV4::new(
+/// The address the kernel wrote into `raw`. An IPv4 peer of an IPv6 socket
+/// (`::ffff:a.b.c.d`) is given as the IPv4 address, so that a peer has one name.
+fn from_raw(raw: &RawAddr) -> Option<SocketAddr> {
+    if raw.sin6_family == libc::AF_INET as libc::sa_family_t {
+        // SAFETY: the kernel wrote a sockaddr_in (family AF_INET) at the start of `raw`,
+        // which is large and aligned enough for one.
+        let sa: libc::sockaddr_in =
+            unsafe { std::ptr::read((raw as *const RawAddr).cast::<libc::sockaddr_in>()) };
+        return Some(SocketAddr::V4(SocketAddrV4::new(
             Ipv4Addr::from(u32::from_be(sa.sin_addr.s_addr)),
             u16::from_be(sa.sin_port),
-        )
-    })
+        )));
+    }
+    if raw.sin6_family == libc::AF_INET6 as libc::sa_family_t {
+        let ip = Ipv6Addr::from(raw.sin6_addr.s6_addr);
+        let port = u16::from_be(raw.sin6_port);
+        return Some(match ip.to_ipv4_mapped() {
+            Some(v4) => SocketAddr::V4(SocketAddrV4::new(v4, port)),
+            None => SocketAddr::V6(SocketAddrV6::new(
+                ip,
+                port,
+                raw.sin6_flowinfo,
+                raw.sin6_scope_id,
+            )),
+        });
+    }
+    None
 }
 
 /// The C structures a `recvmmsg` call reads and writes, kept from call to call.
 struct RecvHeaders {
-    names: [libc::sockaddr_in; MAX_BATCH],
+    names: [RawAddr; MAX_BATCH],
     iovs: [libc::iovec; MAX_BATCH],
     msgs: [libc::mmsghdr; MAX_BATCH],
 }
@@ -60,11 +106,9 @@ pub struct RecvBatch {
     slot_len: usize,
     headers: Box<RecvHeaders>,
     lens: [usize; MAX_BATCH],
-    addrs: [Option<SocketAddrV4>; MAX_BATCH],
+    addrs: [Option<SocketAddr>; MAX_BATCH],
     count: usize,
 }
-
-const SOCKADDR_IN_LEN: libc::socklen_t = std::mem::size_of::<libc::sockaddr_in>() as _;
 
 impl RecvBatch {
     /// Buffers for datagrams of up to `slot_len` bytes (longer ones are truncated).
@@ -80,8 +124,8 @@ impl RecvBatch {
             // never resized.
             h.iovs[i].iov_base = base.wrapping_add(i * slot_len).cast();
             h.iovs[i].iov_len = slot_len;
-            h.msgs[i].msg_hdr.msg_name = (&mut h.names[i] as *mut libc::sockaddr_in).cast();
-            h.msgs[i].msg_hdr.msg_namelen = SOCKADDR_IN_LEN;
+            h.msgs[i].msg_hdr.msg_name = (&mut h.names[i] as *mut RawAddr).cast();
+            h.msgs[i].msg_hdr.msg_namelen = RAW_ADDR_LEN;
             h.msgs[i].msg_hdr.msg_iov = &mut h.iovs[i];
             h.msgs[i].msg_hdr.msg_iovlen = 1;
         }
@@ -95,8 +139,9 @@ impl RecvBatch {
         }
     }
 
-    /// Datagrams received by the last call: (sender, bytes). Non-IPv4 senders are `None`.
-    pub fn iter(&self) -> impl Iterator<Item = (Option<SocketAddrV4>, &[u8])> {
+    /// Datagrams received by the last call: (sender, bytes). A sender that is neither
+    /// IPv4 nor IPv6 is `None`.
+    pub fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
         (0..self.count).map(move |i| {
             let start = i * self.slot_len;
             (self.addrs[i], &self.data[start..start + self.lens[i]])
@@ -111,7 +156,7 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
     let h = &mut *batch.headers;
     // The kernel wrote the address lengths of the datagrams of the last call.
     for m in &mut h.msgs[..batch.count] {
-        m.msg_hdr.msg_namelen = SOCKADDR_IN_LEN;
+        m.msg_hdr.msg_namelen = RAW_ADDR_LEN;
     }
     // SAFETY: every header points at its own entry of `names` and `iovs` (in the same
     // box) and at its own `slot_len` bytes of `data`, all owned by `batch`, which is
@@ -132,7 +177,7 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
     let n = n as usize;
     for i in 0..n {
         batch.lens[i] = (h.msgs[i].msg_len as usize).min(batch.slot_len);
-        batch.addrs[i] = from_sockaddr(&h.names[i]);
+        batch.addrs[i] = from_raw(&h.names[i]);
     }
     batch.count = n;
     Ok(n)
@@ -214,14 +259,15 @@ pub fn gso_supported(fd: &impl AsRawFd) -> bool {
 pub fn send_batch<'a>(
     fd: &impl AsRawFd,
     batch: &mut SendBatch,
-    datagrams: impl IntoIterator<Item = (SocketAddrV4, &'a [u8])>,
+    datagrams: impl IntoIterator<Item = (SocketAddr, &'a [u8])>,
     gso: bool,
 ) -> io::Result<usize> {
     let h = &mut *batch.0;
     let mut n = 0;
     for (i, (addr, bytes)) in datagrams.into_iter().take(MAX_BATCH).enumerate() {
         n = i + 1;
-        h.names[i] = to_sockaddr(addr);
+        h.lens[i] = to_raw(addr, &mut h.names[i]);
+        h.addrs[i] = addr;
         // The kernel only reads through this pointer (sendmmsg).
         h.iovs[i].iov_base = bytes.as_ptr() as *mut libc::c_void;
         h.iovs[i].iov_len = bytes.len();
@@ -229,9 +275,6 @@ pub fn send_batch<'a>(
     if n == 0 {
         return Ok(0);
     }
-    let same_remote = |a: &libc::sockaddr_in, b: &libc::sockaddr_in| {
-        a.sin_addr.s_addr == b.sin_addr.s_addr && a.sin_port == b.sin_port
-    };
     // Group the datagrams into messages, each a run from datagram `i` to `end`.
     let mut messages = 0;
     let mut i = 0;
@@ -241,7 +284,7 @@ pub fn send_batch<'a>(
         let mut total = size;
         while gso
             && end < n
-            && same_remote(&h.names[end], &h.names[i])
+            && h.addrs[end] == h.addrs[i]
             && h.iovs[end].iov_len <= size
             && h.iovs[end].iov_len > 0
             && end - i < GSO_MAX_SEGMENTS
@@ -255,8 +298,8 @@ pub fn send_batch<'a>(
         }
         let run = end - i;
         let hdr = &mut h.msgs[messages].msg_hdr;
-        hdr.msg_name = (&mut h.names[i] as *mut libc::sockaddr_in).cast();
-        hdr.msg_namelen = SOCKADDR_IN_LEN;
+        hdr.msg_name = (&mut h.names[i] as *mut RawAddr).cast();
+        hdr.msg_namelen = h.lens[i];
         hdr.msg_iov = &mut h.iovs[i];
         hdr.msg_iovlen = run as _;
         hdr.msg_flags = 0;
@@ -315,7 +358,9 @@ pub fn send_batch<'a>(
 /// The C structures a `sendmmsg` call reads, kept from call to call like those of
 /// [`RecvBatch`]; a call writes only the entries it uses.
 struct SendHeaders {
-    names: [libc::sockaddr_in; MAX_BATCH],
+    names: [RawAddr; MAX_BATCH],
+    lens: [libc::socklen_t; MAX_BATCH],
+    addrs: [SocketAddr; MAX_BATCH],
     iovs: [libc::iovec; MAX_BATCH],
     msgs: [libc::mmsghdr; MAX_BATCH],
     cmsgs: [CmsgBuf; MAX_BATCH],
@@ -327,7 +372,8 @@ pub struct SendBatch(Box<SendHeaders>);
 impl SendBatch {
     /// Empty headers.
     pub fn new() -> Self {
-        // SAFETY: arrays of plain-old-data C structs and integers; all-zero is valid.
+        // SAFETY: arrays of plain-old-data C structs, integers and `SocketAddr`s, for
+        // which all-zero bytes are valid values (an IPv4 address 0.0.0.0:0).
         SendBatch(Box::new(unsafe { MaybeUninit::zeroed().assume_init() }))
     }
 }
@@ -513,12 +559,9 @@ mod tests {
     fn batches_round_trip_over_loopback() {
         let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
         let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
-        let to = match rx.local_addr().expect("addr") {
-            std::net::SocketAddr::V4(a) => a,
-            _ => unreachable!("bound to IPv4"),
-        };
+        let to = rx.local_addr().expect("addr");
         let payloads: Vec<Vec<u8>> = (0..10u8).map(|i| vec![i; 1 + i as usize]).collect();
-        let dgs: Vec<(SocketAddrV4, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
+        let dgs: Vec<(SocketAddr, &[u8])> = payloads.iter().map(|p| (to, p.as_slice())).collect();
         assert_eq!(
             send_batch(&tx, &mut SendBatch::new(), dgs.iter().copied(), false).expect("send"),
             10
@@ -533,10 +576,7 @@ mod tests {
                 Err(e) => panic!("recv: {e}"),
             }
         }
-        let from = match tx.local_addr().expect("addr") {
-            std::net::SocketAddr::V4(a) => a,
-            _ => unreachable!("bound to IPv4"),
-        };
+        let from = tx.local_addr().expect("addr");
         assert_eq!(got.len(), 10);
         for (i, (src, bytes)) in got.iter().enumerate() {
             assert_eq!(*src, Some(from));
@@ -545,6 +585,39 @@ mod tests {
         assert_eq!(
             recv_batch(&rx, &mut batch).err().map(|e| e.kind()),
             Some(io::ErrorKind::WouldBlock)
+        );
+    }
+
+    #[test]
+    fn ipv6_batches_round_trip_and_v4_mapped_peers_read_as_ipv4() {
+        let Ok(rx) = UdpSocket::bind("[::]:0") else {
+            return; // no IPv6 on this machine
+        };
+        let port = rx.local_addr().expect("addr").port();
+        let tx6 = UdpSocket::bind("[::1]:0").expect("bind ::1");
+        let tx4 = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let to6: SocketAddr = format!("[::1]:{port}").parse().expect("addr");
+        let to4: SocketAddr = format!("127.0.0.1:{port}").parse().expect("addr");
+        let sent6 = send_batch(&tx6, &mut SendBatch::new(), [(to6, &b"six"[..])], false);
+        assert_eq!(sent6.expect("send over IPv6"), 1);
+        let sent4 = send_batch(&tx4, &mut SendBatch::new(), [(to4, &b"four"[..])], false);
+        assert_eq!(sent4.expect("send over IPv4"), 1);
+        rx.set_nonblocking(true).expect("nonblocking");
+        let mut batch = RecvBatch::new(64);
+        let mut got = Vec::new();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while got.len() < 2 && std::time::Instant::now() < deadline {
+            if recv_batch(&rx, &mut batch).is_ok() {
+                got.extend(batch.iter().map(|(from, b)| (from, b.to_vec())));
+            }
+        }
+        got.sort_by_key(|(_, b)| b.clone());
+        assert_eq!(
+            got,
+            [
+                (tx4.local_addr().ok(), b"four".to_vec()),
+                (tx6.local_addr().ok(), b"six".to_vec())
+            ]
         );
     }
 
@@ -580,11 +653,8 @@ mod tests {
         assert_eq!(&buf, b"ok");
     }
 
-    fn v4(s: &UdpSocket) -> SocketAddrV4 {
-        match s.local_addr().expect("addr") {
-            std::net::SocketAddr::V4(a) => a,
-            _ => unreachable!("bound to IPv4"),
-        }
+    fn v4(s: &UdpSocket) -> SocketAddr {
+        s.local_addr().expect("addr")
     }
 
     /// Every datagram waiting on `rx`, in order (waits up to 5 s for `want`).
@@ -638,7 +708,7 @@ mod tests {
             .enumerate()
             .map(|(i, &(_, len))| (0..len).map(|k| (i * 7 + k) as u8).collect())
             .collect();
-        let dgs: Vec<(SocketAddrV4, &[u8])> = plan
+        let dgs: Vec<(SocketAddr, &[u8])> = plan
             .iter()
             .zip(&payloads)
             .map(|(&(r, _), p)| (to[r], p.as_slice()))
@@ -667,7 +737,7 @@ mod tests {
             let payloads: Vec<Vec<u8>> = (0..count)
                 .map(|i| (0..len).map(|k| (i * 3 + k) as u8).collect())
                 .collect();
-            let dgs: Vec<(SocketAddrV4, &[u8])> =
+            let dgs: Vec<(SocketAddr, &[u8])> =
                 payloads.iter().map(|p| (to, p.as_slice())).collect();
             let sent = send_batch(
                 &tx,
@@ -700,12 +770,12 @@ mod tests {
             let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
             let rx: Vec<UdpSocket> = (0..3).map(|_| UdpSocket::bind("127.0.0.1:0").expect("bind")).collect();
             rx.iter().for_each(|s| s.set_nonblocking(true).expect("nonblocking"));
-            let to: Vec<SocketAddrV4> = rx.iter().map(v4).collect();
+            let to: Vec<SocketAddr> = rx.iter().map(v4).collect();
             let payloads: Vec<Vec<u8>> = plan
                 .iter()
                 .map(|&(_, len, seed)| (0..len).map(|k| seed.wrapping_add(k as u8)).collect())
                 .collect();
-            let dgs: Vec<(SocketAddrV4, &[u8])> =
+            let dgs: Vec<(SocketAddr, &[u8])> =
                 plan.iter().zip(&payloads).map(|(&(r, _, _), p)| (to[r], p.as_slice())).collect();
             let mut sent = 0;
             while sent < dgs.len() {

@@ -1,18 +1,20 @@
-//! The driver of one `udp { }` interface: a non-blocking IPv4 socket, batched receive
-//! (`recvmmsg`) and send (`sendmmsg`, with UDP segmentation offload for runs to one
-//! peer). Which peer is which link, and what to send when, is the core's.
+//! The driver of one `udp { }` interface: a non-blocking IPv4 or IPv6 socket, batched
+//! receive (`recvmmsg`) and send (`sendmmsg`, with UDP segmentation offload for runs to
+//! one peer). A server binds at start; a client binds and resolves its target when the
+//! core asks it to open. Which peer is which link, and what to send when, is the core's.
 
 use std::collections::VecDeque;
 use std::io;
-use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
+use std::net::{IpAddr, SocketAddr, UdpSocket};
 use std::os::fd::{AsRawFd, RawFd};
 
 use socket2::{Domain, Protocol, Socket, Type};
 
 use super::driver::{Driver, Progress};
 use super::log;
+use super::resolve::resolve;
 use super::sys::{self, MAX_BATCH, RecvBatch, SendBatch};
-use crate::config::UdpInterface;
+use crate::config::{Remote, UdpInterface};
 use crate::routing::{Engine, InterfaceId, Timestamp, Transmit};
 
 /// Socket buffer sizes asked for, so bursts are not dropped by the kernel.
@@ -23,9 +25,13 @@ const DATAGRAM_MAX: usize = 8192;
 /// Receive batches taken per wake-up before the loop gets a turn to send.
 const BATCHES_PER_TURN: usize = 8;
 
-/// Binds the socket of `config` (non-blocking, large buffers).
-fn bind(config: &UdpInterface) -> io::Result<UdpSocket> {
-    let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
+/// Binds a non-blocking socket with large buffers at `local`.
+fn bind(local: SocketAddr, label: &str) -> io::Result<UdpSocket> {
+    let socket = Socket::new(Domain::for_address(local), Type::DGRAM, Some(Protocol::UDP))?;
+    if local.is_ipv6() && local.ip().is_unspecified() {
+        // `address ::;` takes IPv4 peers too, as `::ffff:a.b.c.d`.
+        let _ = socket.set_only_v6(false);
+    }
     // Beyond the system's limit when privileged, else up to it.
     if sys::force_buffer_size(&socket, true, SOCKET_BUFFER).is_err() {
         let _ = socket.set_recv_buffer_size(SOCKET_BUFFER);
@@ -38,35 +44,36 @@ fn bind(config: &UdpInterface) -> io::Result<UdpSocket> {
         && got < SOCKET_BUFFER
     {
         log::warn(&format_args!(
-            "udp {}:{}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
+            "{label}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
              may be dropped by the kernel; raise the limit with \
              `sysctl -w net.core.rmem_max={SOCKET_BUFFER}`",
-            config.address,
-            config.port,
             got / 2 / 1024,
             SOCKET_BUFFER / 1024
         ));
     }
     socket.set_nonblocking(true)?;
-    let address = SocketAddr::V4(SocketAddrV4::new(config.address, config.port));
-    socket.bind(&address.into())?;
+    socket.bind(&local.into())?;
     Ok(socket.into())
 }
 
-/// The IPv4 peer of a transmit (the only kind this socket has: it receives from IPv4
-/// peers only, and peers are learned from what it receives).
-fn peer_v4(t: &Transmit) -> SocketAddrV4 {
-    match t.to {
-        Some(SocketAddr::V4(a)) => a,
-        _ => SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0),
+/// The address to send to from a socket of the given family: an IPv4 peer of an IPv6
+/// socket is written `::ffff:a.b.c.d`.
+fn on_wire(to: SocketAddr, v6_socket: bool) -> SocketAddr {
+    match to {
+        SocketAddr::V4(a) if v6_socket => {
+            SocketAddr::new(IpAddr::V6(a.ip().to_ipv6_mapped()), a.port())
+        }
+        other => other,
     }
 }
 
-/// A bound UDP interface.
+/// A UDP interface: a server bound at start, or a client of one remote.
 pub struct UdpDriver {
     interface: InterfaceId,
     label: String,
-    socket: UdpSocket,
+    config: UdpInterface,
+    socket: Option<UdpSocket>,
+    v6: bool,
     batch: RecvBatch,
     send_scratch: SendBatch,
     /// Handed out by the core, not yet taken by the kernel.
@@ -78,23 +85,186 @@ pub struct UdpDriver {
 }
 
 impl UdpDriver {
-    /// Binds the socket of `config` for the core's interface `interface`.
-    pub fn open(config: &UdpInterface, interface: InterfaceId) -> io::Result<Self> {
-        let socket = bind(config)?;
-        let gso = sys::gso_supported(&socket);
-        Ok(UdpDriver {
+    /// The label of `config` in messages and counters: `udp ADDRESS:PORT` for a
+    /// server, `udp connect HOST:PORT` for a client.
+    pub fn label(config: &UdpInterface) -> String {
+        match &config.connect {
+            None => format!(
+                "udp {}",
+                SocketAddr::new(config.local_address(), config.port)
+            ),
+            Some(remote) => format!("udp connect {remote}"),
+        }
+    }
+
+    /// Binds a server's socket at once (a port in use stops the start, naming the
+    /// block); a client's is bound when the core asks it to open.
+    pub fn new(config: &UdpInterface, interface: InterfaceId) -> io::Result<Self> {
+        let label = Self::label(config);
+        let mut driver = UdpDriver {
             interface,
-            label: format!("udp {}:{}", config.address, config.port),
-            socket,
+            label,
+            config: config.clone(),
+            socket: None,
+            v6: false,
             batch: RecvBatch::new(DATAGRAM_MAX),
             send_scratch: SendBatch::new(),
             in_flight: VecDeque::new(),
-            gso,
-        })
+            gso: false,
+        };
+        if config.connect.is_none() {
+            let local = SocketAddr::new(config.local_address(), config.port);
+            let socket = bind(local, &driver.label)
+                .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", driver.label)))?;
+            driver.adopt(socket);
+        }
+        Ok(driver)
+    }
+
+    fn adopt(&mut self, socket: UdpSocket) {
+        self.gso = sys::gso_supported(&socket);
+        self.v6 = socket.local_addr().is_ok_and(|a| a.is_ipv6());
+        self.socket = Some(socket);
+    }
+
+    /// A client's socket, bound for `remote`, and where its datagrams go.
+    fn connect(&self, remote: &Remote) -> io::Result<(UdpSocket, SocketAddr)> {
+        let target = resolve(remote)?;
+        let local_ip = self.config.address.unwrap_or(match target {
+            SocketAddr::V4(_) => IpAddr::from([0u8; 4]),
+            SocketAddr::V6(_) => IpAddr::from([0u16; 8]),
+        });
+        let socket = bind(SocketAddr::new(local_ip, self.config.port), &self.label)?;
+        if target.is_ipv4() {
+            // A broadcast address needs it; any other target does not mind it.
+            socket.set_broadcast(true)?;
+        }
+        Ok((socket, target))
     }
 
     /// The bound address.
     #[cfg(test)]
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket
+            .as_ref()
+            .ok_or_else(|| io::Error::from(io::ErrorKind::NotConnected))?
+            .local_addr()
+    }
+}
+
+impl Driver for UdpDriver {
+    fn interface(&self) -> InterfaceId {
+        self.interface
+    }
+
+    fn fd(&self) -> Option<RawFd> {
+        self.socket.as_ref().map(AsRawFd::as_raw_fd)
+    }
+
+    fn open(&mut self, engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
+        let Some(remote) = self.config.connect.clone() else {
+            return Ok(true);
+        };
+        let (socket, target) = self.connect(&remote)?;
+        self.adopt(socket);
+        engine.set_target(self.interface, target);
+        Ok(true)
+    }
+
+    fn close(&mut self) {
+        if self.config.connect.is_some() {
+            self.socket = None;
+            self.in_flight.clear();
+        }
+    }
+
+    fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        let Some(socket) = &self.socket else {
+            return Progress::Done;
+        };
+        for _ in 0..BATCHES_PER_TURN {
+            let n = match sys::recv_batch(socket, &mut self.batch) {
+                Ok(n) => n,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                // An ICMP "port unreachable" for an earlier datagram: not a receive problem.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => {
+                    engine.on_receive_failed(self.interface, &e);
+                    return Progress::Done;
+                }
+            };
+            for (from, bytes) in self.batch.iter() {
+                if let Some(from) = from {
+                    engine.handle_datagram(self.interface, from, bytes, now);
+                }
+            }
+            // Fewer than a full batch: the socket is drained. With edge-triggered
+            // readiness a datagram arriving later raises a new event.
+            if n < MAX_BATCH {
+                return Progress::Done;
+            }
+        }
+        Progress::More
+    }
+
+    fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        let Some(socket) = &self.socket else {
+            return Progress::Done;
+        };
+        loop {
+            let room = MAX_BATCH - self.in_flight.len();
+            engine.poll_transmit(self.interface, now, room, &mut self.in_flight);
+            if self.in_flight.is_empty() {
+                return Progress::Done;
+            }
+            let wanted = self.in_flight.len();
+            let v6 = self.v6;
+            // Every datagram of a UDP interface has a peer; a missing one would fail to
+            // send and be counted, not shift the others.
+            let nowhere = SocketAddr::from(([0u8; 4], 0));
+            let batch = self
+                .in_flight
+                .iter()
+                .map(|t| (on_wire(t.to.unwrap_or(nowhere), v6), &t.packet[..]));
+            match sys::send_batch(socket, &mut self.send_scratch, batch, self.gso) {
+                Ok(sent) => {
+                    for t in self.in_flight.drain(..sent.min(wanted)) {
+                        engine.on_sent(&t);
+                    }
+                    if sent < wanted {
+                        return Progress::Blocked; // the socket buffer is full
+                    }
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Blocked,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // The kernel or the route refused a GSO run (no checksum offload,
+                // IPsec, ...): send every datagram on its own from now on.
+                Err(e) if self.gso && e.kind() == io::ErrorKind::Unsupported => {
+                    self.gso = false;
+                    log::warn(&format_args!(
+                        "{}: {e}; sending datagrams one by one",
+                        self.label
+                    ));
+                }
+                // A late ICMP error for an earlier datagram surfaced here; nothing was sent.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
+                // This datagram cannot be sent (e.g. no route): the core counts it.
+                Err(e) => {
+                    if let Some(t) = self.in_flight.pop_front() {
+                        engine.on_send_failed(self.interface, &t, &e);
+                    }
+                }
+            }
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.in_flight.is_empty()
+    }
+}
+
+#[cfg(test)]
     pub fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
     }
@@ -225,8 +395,8 @@ mod tests {
             panic!("one udp interface");
         };
         let mut engine = Engine::new(&loaded.config, RouterOptions::default());
-        let id = engine.add_datagram_interface("udp test".into(), 0);
-        let mut driver = UdpDriver::open(iface, id).expect("bind");
+        let id = engine.add_datagram_interface("udp test".into(), 0, Default::default());
+        let mut driver = UdpDriver::new(iface, id).expect("bind");
         let to = driver.local_addr().expect("addr");
         let (listener, sender) = (
             UdpSocket::bind("127.0.0.1:0").expect("bind"),
@@ -237,7 +407,8 @@ mod tests {
             .expect("timeout");
         listener.send_to(&frame(0, 12), to).expect("send");
         receive_until(&mut driver, &mut engine, 1);
-        sys::disable_udp_checksums(&driver.socket).expect("SO_NO_CHECK");
+        let socket = driver.socket.as_ref().expect("bound");
+        sys::disable_udp_checksums(socket).expect("SO_NO_CHECK");
         let burst: Vec<Vec<u8>> = (1..=10).map(|i| frame(i, 1)).collect();
         sender.send_to(&burst.concat(), to).expect("send");
         receive_until(&mut driver, &mut engine, 11);

@@ -3,6 +3,7 @@
 
 use std::fmt;
 
+use super::admission::Refused;
 use crate::wire::ParserStats;
 
 /// What went through one link.
@@ -77,6 +78,8 @@ pub struct InterfaceReport<'a> {
     pub parser: &'a ParserStats,
     /// Receive, send and open errors other than "would block".
     pub io_errors: u64,
+    /// Remotes a server refused.
+    pub refused: Refused,
 }
 
 impl fmt::Display for InterfaceReport<'_> {
@@ -85,6 +88,15 @@ impl fmt::Display for InterfaceReport<'_> {
             f,
             "{}: {}, {} I/O errors",
             self.label, self.parser, self.io_errors
-        )
+        )?;
+        let r = self.refused;
+        if r != Refused::default() {
+            write!(
+                f,
+                ", {} refused (not allowed), {} refused (max_peers)",
+                r.not_allowed, r.full
+            )?;
+        }
+        Ok(())
     }
 }

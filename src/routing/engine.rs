@@ -27,24 +27,31 @@ use std::io;
 use std::net::SocketAddr;
 use std::time::Duration;
 
+use slab::Slab;
+
+use super::admission::{self, Refusal};
 use super::counters::InterfaceReport;
 use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
-use super::interface::{Interface, InterfaceId, Kind, pacer_for};
+use super::interface::{Interface, InterfaceId, Kind, Reopen};
 use super::link::LinkId;
 use super::pacer::Pace;
 use super::queue::Packet;
-use super::reconnect::Connection;
+use super::reconnect::{Connection, FIRST_BACKOFF};
 use super::remotes::Remotes;
 use super::router::{Output, Router, RouterOptions};
 use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::address::Address;
-use crate::config::Config;
-use crate::wire::Parser;
+use crate::config::{Config, PeerLimits};
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);
+
+/// How long a TCP client may be down before what was queued for it meanwhile is dropped
+/// rather than sent when it reconnects: telemetry seconds old misleads a ground station,
+/// and a command nobody saw being sent should not fire minutes later.
+pub const FORGET_AFTER: Duration = Duration::from_secs(2);
 
 /// Most packets one link of an unpaced datagram interface hands out in a row before the
 /// next link's turn: a run of datagrams to one peer that the driver can send as one
@@ -88,16 +95,18 @@ pub enum Notice {
     Error(String),
     /// A message id outside the dialect was seen for the first time.
     UnknownId(u32),
-    /// The stream interface should be opened now; answer with
+    /// The interface (a stream, or a datagram client) should be opened now; answer with
     /// [`Engine::stream_opened`] or [`Engine::stream_open_failed`].
     Open(InterfaceId),
+    /// The accepted connection was removed (it closed): drop its driver.
+    Closed(InterfaceId),
 }
 
 /// The sans-IO routing core: interfaces, links, the router, timers and counters.
 #[derive(Debug)]
 pub struct Engine {
     router: Router,
-    interfaces: Vec<Interface>,
+    interfaces: Slab<Interface>,
     out: Output,
     notices: VecDeque<Notice>,
     unknown: UnknownIds,
@@ -109,7 +118,7 @@ impl Engine {
     pub fn new(config: &Config, options: RouterOptions) -> Self {
         Engine {
             router: Router::with_options(config, options),
-            interfaces: Vec::new(),
+            interfaces: Slab::new(),
             out: Output::default(),
             notices: VecDeque::new(),
             unknown: UnknownIds::default(),
@@ -127,68 +136,211 @@ impl Engine {
         self.interfaces.get(id.0)
     }
 
-    /// Adds an interface of datagrams from and to any number of peers (a UDP socket)
-    /// named `label`, sending at most `max_bitrate` bit/s (0: no limit).
-    pub fn add_datagram_interface(&mut self, label: String, max_bitrate: u64) -> InterfaceId {
-        self.push_interface(Interface {
-            described: label.clone(),
+    /// Adds a datagram server (a UDP socket) named `label`: any number of peers, each a
+    /// link from its first valid frame, within `limits`; sending at most `max_bitrate`
+    /// bit/s (0: no limit).
+    pub fn add_datagram_interface(
+        &mut self,
+        label: String,
+        max_bitrate: u64,
+        limits: PeerLimits,
+    ) -> InterfaceId {
+        self.push_interface(Interface::new(
+            label.clone(),
             label,
-            parser: Parser::new(),
-            tail: StaleTail::new(None),
-            pacer: pacer_for(max_bitrate),
-            pace_deadline: None,
-            io_errors: 0,
-            kind: Kind::Datagram {
+            StaleTail::new(None),
+            max_bitrate,
+            Kind::Datagram {
                 remotes: Remotes::default(),
                 last_sender: None,
+                limits,
             },
-        })
+        ))
+    }
+
+    /// Adds a datagram client named `label` whose one link is `link_name`: it sends to
+    /// its target from the start (once [`Engine::set_target`] names it), and whatever
+    /// its socket receives is that link's. Opened like a stream ([`Notice::Open`]).
+    pub fn add_datagram_client(
+        &mut self,
+        label: String,
+        link_name: &str,
+        max_bitrate: u64,
+        now: Timestamp,
+    ) -> InterfaceId {
+        let link = self
+            .router
+            .add_serial_link(link_name, &[], now, &mut self.out);
+        self.take_output();
+        self.push_interface(Interface::new(
+            label.clone(),
+            label,
+            StaleTail::new(None),
+            max_bitrate,
+            Kind::DatagramClient {
+                link,
+                target: None,
+                last_sender: None,
+                connection: Connection::new(now),
+            },
+        ))
+    }
+
+    /// Sets where datagram client `id` sends (its resolved target).
+    pub fn set_target(&mut self, id: InterfaceId, target: SocketAddr) {
+        if let Some(Interface {
+            kind: Kind::DatagramClient { target: t, .. },
+            ..
+        }) = self.interfaces.get_mut(id.0)
+        {
+            *t = Some(target);
+        }
     }
 
     /// Adds a byte-stream interface that is one link named `device` (a serial port at
     /// `baudrate`), reaching `preload` permanently. The core asks for it to be opened
-    /// ([`Notice::Open`]) at the first [`Engine::handle_timeout`].
+    /// ([`Notice::Open`]) at the first [`Engine::handle_timeout`], and again with a
+    /// backoff whenever it is missing or lost.
     pub fn add_stream_interface(
         &mut self,
         device: &str,
         preload: &[Address],
         baudrate: Option<u32>,
+        max_bitrate: u64,
         now: Timestamp,
     ) -> InterfaceId {
         let link = self
             .router
             .add_serial_link(device, preload, now, &mut self.out);
         self.take_output();
-        self.push_interface(Interface {
-            label: device.to_string(),
-            described: format!("serial device {device}"),
-            parser: Parser::new(),
-            tail: StaleTail::new(baudrate),
-            pacer: pacer_for(0),
-            pace_deadline: None,
-            io_errors: 0,
-            kind: Kind::Stream {
+        self.push_interface(Interface::new(
+            device.to_string(),
+            format!("serial device {device}"),
+            StaleTail::new(baudrate),
+            max_bitrate,
+            Kind::Stream {
                 link,
                 connection: Connection::new(now),
+                accepted_by: None,
+                reopen: Reopen {
+                    first_wait: FIRST_BACKOFF,
+                    forget_after: None,
+                    down_since: None,
+                },
             },
-        })
+        ))
+    }
+
+    /// Adds a stream client (a TCP client) named `label` whose one link is `link_name`:
+    /// opened at once, reconnected at once after a loss and then with a backoff capped
+    /// at two seconds, forever; what was queued while it was down longer than
+    /// [`FORGET_AFTER`] is dropped when it comes back.
+    pub fn add_stream_client(
+        &mut self,
+        label: String,
+        link_name: &str,
+        max_bitrate: u64,
+        now: Timestamp,
+    ) -> InterfaceId {
+        let link = self
+            .router
+            .add_serial_link(link_name, &[], now, &mut self.out);
+        self.take_output();
+        self.push_interface(Interface::new(
+            label.clone(),
+            label,
+            StaleTail::new(None),
+            max_bitrate,
+            Kind::Stream {
+                link,
+                connection: Connection::new(now),
+                accepted_by: None,
+                reopen: Reopen {
+                    first_wait: Duration::ZERO,
+                    forget_after: Some(FORGET_AFTER),
+                    down_since: None,
+                },
+            },
+        ))
+    }
+
+    /// Adds a stream server (a TCP listener) named `label`, taking connections within
+    /// `limits` ([`Engine::accept`]); each sends at most `max_bitrate` bit/s.
+    pub fn add_listener(&mut self, label: String, limits: PeerLimits) -> InterfaceId {
+        self.push_interface(Interface::new(
+            label.clone(),
+            label,
+            StaleTail::new(None),
+            0,
+            Kind::Listener {
+                limits,
+                connections: 0,
+            },
+        ))
+    }
+
+    /// A connection from `peer` arrived at server `listener`: returns its new stream
+    /// interface (one link, named `tcp:a.b.c.d:port`), or None if the server's limits
+    /// refuse it (counted; said once per reason). Close a refused connection at once.
+    pub fn accept(
+        &mut self,
+        listener: InterfaceId,
+        peer: SocketAddr,
+        max_bitrate: u64,
+        now: Timestamp,
+    ) -> Option<InterfaceId> {
+        let server = self.interfaces.get_mut(listener.0)?;
+        let Kind::Listener {
+            limits,
+            connections,
+        } = &mut server.kind
+        else {
+            return None;
+        };
+        if let Err(why) = admission::admit(limits, *connections, peer.ip()) {
+            if server.refused.count(why) {
+                let text = admission::refusal_text(&server.described, why, peer.ip(), limits);
+                self.notices.push_back(Notice::Warning(text));
+            }
+            return None;
+        }
+        *connections += 1;
+        let name = format!("tcp:{peer}");
+        let link = self.router.add_connection_link(&name, now);
+        self.notices.push_back(Notice::LinkAdded {
+            id: link,
+            name: name.clone(),
+        });
+        Some(self.push_interface(Interface::new(
+            name.clone(),
+            name,
+            StaleTail::new(None),
+            max_bitrate,
+            Kind::Stream {
+                link,
+                connection: Connection::Open,
+                accepted_by: Some(listener),
+                reopen: Reopen {
+                    first_wait: Duration::ZERO,
+                    forget_after: None,
+                    down_since: None,
+                },
+            },
+        )))
     }
 
     fn push_interface(&mut self, interface: Interface) -> InterfaceId {
-        self.interfaces.push(interface);
-        InterfaceId(self.interfaces.len() - 1)
+        InterfaceId(self.interfaces.insert(interface))
     }
 
-    /// The link of stream interface `id`.
+    /// The link of stream or client interface `id`.
     pub fn stream_link(&self, id: InterfaceId) -> Option<LinkId> {
-        match self.interfaces.get(id.0)?.kind {
-            Kind::Stream { link, .. } => Some(link),
-            Kind::Datagram { .. } => None,
-        }
+        self.interfaces.get(id.0)?.own_link()
     }
 
     /// Routes the frames of a datagram from `peer` on interface `id`. A frame may
     /// continue in the same peer's next datagram; a datagram from another peer drops it.
+    /// On a server, a peer without a link yet must pass the interface's limits.
     pub fn handle_datagram(
         &mut self,
         id: InterfaceId,
@@ -197,34 +349,66 @@ impl Engine {
         now: Timestamp,
     ) {
         let Some(Interface {
-            parser, tail, kind, ..
+            parser,
+            tail,
+            kind,
+            refused,
+            described,
+            ..
         }) = self.interfaces.get_mut(id.0)
         else {
             return;
         };
-        let Kind::Datagram {
-            remotes,
-            last_sender,
-        } = kind
-        else {
-            return;
+        let sender = match kind {
+            Kind::Datagram {
+                remotes,
+                last_sender,
+                limits,
+            } => {
+                let link = remotes.link_of(peer);
+                if link.is_none()
+                    && let Err(why) = admission::admit(limits, remotes.len(), peer.ip())
+                {
+                    if refused.count(why) {
+                        let text = admission::refusal_text(described, why, peer.ip(), limits);
+                        self.notices.push_back(Notice::Warning(text));
+                    }
+                    return;
+                }
+                if *last_sender != Some(peer) {
+                    parser.clear();
+                    *last_sender = Some(peer);
+                }
+                Sender::Remote {
+                    remotes,
+                    address: peer,
+                    link,
+                }
+            }
+            Kind::DatagramClient {
+                link,
+                last_sender,
+                connection,
+                ..
+            } => {
+                if !connection.is_open() {
+                    return;
+                }
+                if *last_sender != Some(peer) {
+                    parser.clear();
+                    *last_sender = Some(peer);
+                }
+                Sender::Stream(*link)
+            }
+            Kind::Stream { .. } | Kind::Listener { .. } => return,
         };
-        if *last_sender != Some(peer) {
-            parser.clear();
-            *last_sender = Some(peer);
-        }
-        let link = remotes.link_of(peer);
         let mut intake = Intake {
             router: &mut self.router,
             out: &mut self.out,
             notices: &mut self.notices,
             unknown: &mut self.unknown,
             now,
-            sender: Sender::Remote {
-                remotes,
-                address: peer,
-                link,
-            },
+            sender,
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -239,9 +423,15 @@ impl Engine {
         else {
             return;
         };
-        let Kind::Stream { link, .. } = *kind else {
+        let Kind::Stream {
+            link, connection, ..
+        } = *kind
+        else {
             return;
         };
+        if !connection.is_open() {
+            return;
+        }
         let mut intake = Intake {
             router: &mut self.router,
             out: &mut self.out,
@@ -337,18 +527,22 @@ impl Engine {
             }
             Kind::Stream {
                 link, connection, ..
-            } => {
-                if !connection.is_open() {
-                    return;
-                }
+            }
+            | Kind::DatagramClient {
+                link,
+                connection,
+                target: _,
+                ..
+            } if connection.is_open() => {
+                let to = match kind_target(kind) {
+                    Ok(to) => to,
+                    Err(()) => return,
+                };
+                let link = *link;
                 while left > 0 {
-                    match take(router, *link) {
+                    match take(router, link) {
                         Ok(Some(packet)) => {
-                            queue.push_back(Transmit {
-                                link: *link,
-                                to: None,
-                                packet,
-                            });
+                            queue.push_back(Transmit { link, to, packet });
                             left -= 1;
                         }
                         Ok(None) => break,
@@ -359,6 +553,7 @@ impl Engine {
                     }
                 }
             }
+            Kind::Stream { .. } | Kind::DatagramClient { .. } | Kind::Listener { .. } => {}
         }
     }
 
@@ -403,28 +598,41 @@ impl Engine {
         }
     }
 
-    /// Stream interface `id` was opened at `now`.
-    pub fn stream_opened(&mut self, id: InterfaceId, _now: Timestamp) {
+    /// Interface `id` (a stream or a datagram client) was opened at `now`. What was
+    /// queued for a client that stayed down too long is dropped now (stale telemetry is
+    /// not replayed).
+    pub fn stream_opened(&mut self, id: InterfaceId, now: Timestamp) {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
-        if let Kind::Stream { connection, .. } = &mut interface.kind {
-            *connection = Connection::Open;
-            interface.parser.clear();
-            if interface.io_errors > 0 {
-                self.notices
-                    .push_back(Notice::Warning(format!("{} is back", interface.described)));
-            }
+        let link = interface.own_link();
+        let Some(connection) = interface.connection_mut() else {
+            return;
+        };
+        *connection = Connection::Open;
+        interface.parser.clear();
+        if let Kind::Stream { reopen, .. } = &mut interface.kind
+            && let Some(since) = reopen.down_since.take()
+            && reopen
+                .forget_after
+                .is_some_and(|limit| now.saturating_since(since) > limit)
+            && let Some(link) = link
+        {
+            self.router.clear_queue(link);
+        }
+        if interface.io_errors > 0 {
+            self.notices
+                .push_back(Notice::Warning(format!("{} is back", interface.described)));
         }
     }
 
-    /// Opening stream interface `id` failed at `now`: it is tried again after a backoff
-    /// (said once per outage, not once per attempt).
+    /// Opening interface `id` failed at `now`: it is tried again after a backoff (said
+    /// once per outage, not once per attempt).
     pub fn stream_open_failed(&mut self, id: InterfaceId, now: Timestamp, error: &dyn Display) {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
-        if let Kind::Stream { connection, .. } = &mut interface.kind
+        if let Some(connection) = interface.connection_mut()
             && connection.failed(now)
         {
             interface.io_errors += 1;
@@ -435,37 +643,76 @@ impl Engine {
         }
     }
 
-    /// Stream interface `id` was lost at `now` (unplugged, read or write error): held-back
-    /// bytes are dropped and reopening starts after the first backoff.
+    /// Stream `id` was lost at `now` (unplugged, closed by the peer, a read or write
+    /// error): held-back bytes are dropped; a configured stream is opened again after
+    /// its first wait, an accepted connection is removed with its link.
     pub fn stream_lost(&mut self, id: InterfaceId, now: Timestamp, why: &dyn Display) {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
-        if let Kind::Stream { connection, .. } = &mut interface.kind {
-            connection.lost(now);
-            interface.io_errors += 1;
-            interface.parser.clear();
-            self.notices.push_back(Notice::Warning(format!(
-                "{} lost: {why}",
-                interface.described
-            )));
+        interface.parser.clear();
+        match &mut interface.kind {
+            Kind::Stream {
+                accepted_by: Some(server),
+                link,
+                ..
+            } => {
+                let (server, link) = (*server, *link);
+                self.close_connection(id, server, link);
+            }
+            Kind::Stream {
+                connection, reopen, ..
+            } => {
+                connection.lost(now, reopen.first_wait);
+                reopen.down_since = Some(now);
+                interface.io_errors += 1;
+                self.notices.push_back(Notice::Warning(format!(
+                    "{} lost: {why}",
+                    interface.described
+                )));
+            }
+            Kind::DatagramClient { connection, .. } => {
+                connection.lost(now, FIRST_BACKOFF);
+                interface.io_errors += 1;
+                self.notices.push_back(Notice::Warning(format!(
+                    "{} lost: {why}",
+                    interface.described
+                )));
+            }
+            Kind::Datagram { .. } | Kind::Listener { .. } => {}
         }
     }
 
+    /// Removes accepted connection `id` of `server` and its link.
+    fn close_connection(&mut self, id: InterfaceId, server: InterfaceId, link: LinkId) {
+        let Some(closed) = self.interfaces.try_remove(id.0) else {
+            return;
+        };
+        self.router.remove_link(link);
+        if let Some(server) = self.interfaces.get_mut(server.0) {
+            server.closed_parsers += *closed.parser.stats();
+            server.io_errors += closed.io_errors;
+            if let Kind::Listener { connections, .. } = &mut server.kind {
+                *connections = connections.saturating_sub(1);
+            }
+        }
+        self.notices.push_back(Notice::LinkRemoved {
+            id: link,
+            name: closed.label,
+        });
+        self.notices.push_back(Notice::Closed(id));
+    }
+
     /// The next instant something is due: the expiry tick, held-back bytes turning
-    /// stale, a packet the pacer holds back, or reopening a stream.
+    /// stale, a packet the pacer holds back, or opening an interface again.
     pub fn poll_timeout(&self) -> Timestamp {
         let mut due = self.next_tick;
-        for i in &self.interfaces {
-            let stream = match &i.kind {
-                Kind::Stream { connection, .. } => Some(connection),
-                Kind::Datagram { .. } => None,
-            };
-            let open = stream.is_none_or(Connection::is_open);
-            let stale = open
+        for (_, i) in &self.interfaces {
+            let stale = i
+                .is_open()
                 .then(|| i.tail.deadline(i.parser.pending_len()))
                 .flatten();
-            let retry = stream.and_then(Connection::retry_at);
+            let retry = i.connection().and_then(Connection::retry_at);
             for t in [stale, i.pace_deadline, retry].into_iter().flatten() {
                 due = due.min(t);
             }
@@ -475,35 +722,41 @@ impl Engine {
 
     /// Runs what is due at `now` (see [`Engine::poll_timeout`]).
     pub fn handle_timeout(&mut self, now: Timestamp) {
-        for (index, interface) in self.interfaces.iter_mut().enumerate() {
+        for (index, interface) in self.interfaces.iter_mut() {
             if interface.pace_deadline.is_some_and(|t| t <= now) {
                 // The caller polls for transmits next; the pacer decides afresh then.
                 interface.pace_deadline = None;
             }
+            let open = interface.is_open();
+            if let Some(connection) = interface.connection_mut()
+                && connection.ask_if_due(now)
+            {
+                self.notices.push_back(Notice::Open(InterfaceId(index)));
+            }
             let Interface {
                 parser, tail, kind, ..
             } = interface;
-            let stale = tail
-                .deadline(parser.pending_len())
-                .is_some_and(|t| t <= now);
+            let stale = open
+                && tail
+                    .deadline(parser.pending_len())
+                    .is_some_and(|t| t <= now);
+            if !stale {
+                continue;
+            }
             let sender = match kind {
-                Kind::Stream { link, connection } => {
-                    if connection.ask_if_due(now) {
-                        self.notices.push_back(Notice::Open(InterfaceId(index)));
-                    }
-                    (stale && connection.is_open()).then_some(Sender::Stream(*link))
+                Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
+                    Some(Sender::Stream(*link))
                 }
                 Kind::Datagram {
                     remotes,
                     last_sender,
-                } => match (stale, *last_sender) {
-                    (true, Some(address)) => Some(Sender::Remote {
-                        link: remotes.link_of(address),
-                        remotes,
-                        address,
-                    }),
-                    _ => None,
-                },
+                    ..
+                } => last_sender.map(|address| Sender::Remote {
+                    link: remotes.link_of(address),
+                    remotes,
+                    address,
+                }),
+                Kind::Listener { .. } => None,
             };
             if let Some(sender) = sender {
                 // The candidate is rejected and the bytes behind its start scanned again,
@@ -529,7 +782,7 @@ impl Engine {
 
     /// Forgets the peer of a link the router removed.
     fn forget(&mut self, id: LinkId) {
-        for interface in &mut self.interfaces {
+        for (_, interface) in &mut self.interfaces {
             if let Kind::Datagram { remotes, .. } = &mut interface.kind
                 && let Some(address) = remotes.remove(id)
             {
@@ -558,9 +811,10 @@ impl Engine {
             Kind::Datagram { remotes, .. } => {
                 remotes.iter().all(|(l, _)| self.router.peek(l).is_none())
             }
-            Kind::Stream {
-                link, connection, ..
-            } => !connection.is_open() || self.router.peek(*link).is_none(),
+            Kind::Stream { .. } | Kind::DatagramClient { .. } => {
+                !interface.is_open() || interface.own_link().is_none_or(|l| self.router.peek(l).is_none())
+            }
+            Kind::Listener { .. } => true,
         }
     }
 
@@ -571,14 +825,26 @@ impl Engine {
         for link in self.router.links() {
             text.push_str(&format!("  {}\n", link.report()));
         }
-        for i in &self.interfaces {
+        for (_, i) in &self.interfaces {
+            let mut parser = *i.parser.stats();
+            parser += i.closed_parsers;
             let line = InterfaceReport {
                 label: &i.label,
-                parser: i.parser.stats(),
+                parser: &parser,
                 io_errors: i.io_errors,
+                refused: i.refused,
             };
             text.push_str(&format!("  {line}\n"));
         }
         text
+    }
+}
+
+/// Where the packets of a client or stream go: a stream has no address (Ok(None)); a
+/// datagram client goes to its target, and holds its packets while it has none (Err).
+fn kind_target(kind: &Kind) -> Result<Option<SocketAddr>, ()> {
+    match kind {
+        Kind::DatagramClient { target, .. } => target.map(Some).ok_or(()),
+        _ => Ok(None),
     }
 }

@@ -1,16 +1,22 @@
-//! One configured interface as the core sees it: a datagram interface (a UDP socket and
-//! the remotes behind it) or a stream (a serial port, one link), with its parser, its
-//! quiet-line rule, its `max_bitrate` pacer and its error count.
+//! One interface as the core sees it — a datagram server (a UDP socket and the remotes
+//! behind it), a datagram client, a stream (a serial port, a TCP client or an accepted
+//! TCP connection: one link each) or a stream server — with its parser, its quiet-line
+//! rule, its `max_bitrate` pacer and its counters.
 
+use std::net::SocketAddr;
+
+use super::admission::Refused;
 use super::link::LinkId;
 use super::pacer::{DEFAULT_BURST, Pacer};
 use super::reconnect::Connection;
 use super::remotes::Remotes;
 use super::stale::StaleTail;
 use super::time::Timestamp;
-use crate::wire::Parser;
+use crate::config::PeerLimits;
+use crate::wire::{Parser, ParserStats};
 
-/// Identifies an interface of an [`Engine`](super::Engine): its index in creation order.
+/// Identifies an interface of an [`Engine`](super::Engine) for as long as it exists (the
+/// number of a closed connection may be used again).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct InterfaceId(pub usize);
 
@@ -34,21 +40,60 @@ pub fn pacer_for(rate: u64) -> Pacer {
 /// What kind of transport an interface is.
 #[derive(Debug)]
 pub enum Kind {
-    /// Datagrams from and to any number of peers, each its own link.
+    /// A datagram server: datagrams from and to any number of peers, each its own link.
     Datagram {
         /// Peer ↔ link, and the round-robin turn.
         remotes: Remotes,
         /// The peer of the last datagram: a frame may continue in the same peer's next
         /// datagram, never in another's.
-        last_sender: Option<std::net::SocketAddr>,
+        last_sender: Option<SocketAddr>,
+        /// Which peers may become links.
+        limits: PeerLimits,
     },
-    /// A byte stream that is one link.
-    Stream {
+    /// A datagram client: one link, sent to one configured peer (or a broadcast
+    /// address) from the start; whatever its socket receives is that link's.
+    DatagramClient {
         /// Its link (lives as long as the interface).
+        link: LinkId,
+        /// Where its datagrams go, once known (a host name is resolved when it opens).
+        target: Option<SocketAddr>,
+        /// The peer of the last datagram (replies to a broadcast come from each station).
+        last_sender: Option<SocketAddr>,
+        /// Bound, or when to try again.
+        connection: Connection,
+    },
+    /// A byte stream that is one link: a serial port, a TCP client, or a connection a
+    /// TCP server accepted.
+    Stream {
+        /// Its link.
         link: LinkId,
         /// Open, or when to try again.
         connection: Connection,
+        /// The server that accepted it (it is removed when it closes), if any.
+        accepted_by: Option<InterfaceId>,
+        /// How the stream comes back after a loss.
+        reopen: Reopen,
     },
+    /// A stream server: accepts connections, each its own [`Kind::Stream`] interface.
+    Listener {
+        /// Which remotes may connect.
+        limits: PeerLimits,
+        /// Connections open now.
+        connections: usize,
+    },
+}
+
+/// How a stream comes back after it was lost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reopen {
+    /// Wait before the first attempt after a loss (a serial device needs a moment to
+    /// reappear; a TCP client tries again at once).
+    pub first_wait: std::time::Duration,
+    /// If the stream stayed down longer than this, what was queued for it meanwhile is
+    /// dropped when it comes back, so stale telemetry is not replayed (None: kept).
+    pub forget_after: Option<std::time::Duration>,
+    /// When it was lost (while it is down).
+    pub down_since: Option<Timestamp>,
 }
 
 /// The core's state of one interface.
@@ -60,6 +105,8 @@ pub struct Interface {
     pub described: String,
     /// The frame parser of its input.
     pub parser: Parser,
+    /// What parsers of connections it accepted saw, added up when they closed.
+    pub closed_parsers: ParserStats,
     /// When held-back bytes stop waiting.
     pub tail: StaleTail,
     /// Its `max_bitrate`.
@@ -69,6 +116,59 @@ pub struct Interface {
     /// Receive, send and open errors (for a stream: the times it was lost or could
     /// not be opened).
     pub io_errors: u64,
-    /// Datagram or stream.
+    /// Remotes refused by a server's limits.
+    pub refused: Refused,
+    /// Datagram or stream, server or client.
     pub kind: Kind,
+}
+
+impl Interface {
+    /// A new interface of `kind`.
+    pub fn new(label: String, described: String, tail: StaleTail, rate: u64, kind: Kind) -> Self {
+        Interface {
+            label,
+            described,
+            parser: Parser::new(),
+            closed_parsers: ParserStats::default(),
+            tail,
+            pacer: pacer_for(rate),
+            pace_deadline: None,
+            io_errors: 0,
+            refused: Refused::default(),
+            kind,
+        }
+    }
+
+    /// The connection state of an interface that opens (streams, datagram clients).
+    pub fn connection(&self) -> Option<&Connection> {
+        match &self.kind {
+            Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
+                Some(connection)
+            }
+            Kind::Datagram { .. } | Kind::Listener { .. } => None,
+        }
+    }
+
+    /// The connection state, mutable.
+    pub fn connection_mut(&mut self) -> Option<&mut Connection> {
+        match &mut self.kind {
+            Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
+                Some(connection)
+            }
+            Kind::Datagram { .. } | Kind::Listener { .. } => None,
+        }
+    }
+
+    /// The one link of a client or stream interface.
+    pub fn own_link(&self) -> Option<LinkId> {
+        match self.kind {
+            Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => Some(link),
+            Kind::Datagram { .. } | Kind::Listener { .. } => None,
+        }
+    }
+
+    /// True while bytes can flow (servers always; others once open).
+    pub fn is_open(&self) -> bool {
+        self.connection().is_none_or(Connection::is_open)
+    }
 }

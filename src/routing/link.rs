@@ -13,14 +13,17 @@ use super::time::Timestamp;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct LinkId(pub u64);
 
-/// What kind of connection a link is.
+/// How long a link lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LinkKind {
-    /// A serial port: created at start, lives forever, may have preloaded addresses.
+    /// Configured: a serial port, a UDP or TCP client. Created at start, lives as long
+    /// as the router; may have preloaded addresses.
     Serial,
-    /// A remote `ip:port` of a UDP interface: created by its first valid frame, removed
-    /// when its address pool has stayed empty for the expiry time.
+    /// A remote `ip:port` of a UDP server interface: created by its first valid frame,
+    /// removed when its address pool has stayed empty for the expiry time.
     Udp,
+    /// A connection accepted by a TCP server interface: removed when it closes.
+    Connection,
 }
 
 /// A link's name (for logs), kind, learned addresses and outgoing queue.

@@ -19,6 +19,7 @@
 //!
 //! Tests drive the same calls with a simulated clock (`tests/routing/`).
 
+pub mod admission;
 pub mod counters;
 pub mod dispatch;
 pub mod engine;

@@ -1,6 +1,6 @@
-//! Whether a stream interface (a serial port) is open, and when to try opening it again:
-//! at once at start, then with a backoff doubling from [`FIRST_BACKOFF`] to
-//! [`MAX_BACKOFF`] while it stays missing.
+//! Whether an interface that opens (a serial port, a TCP or UDP client) is open, and when
+//! to try opening it again: at once at start, then with a backoff doubling from
+//! [`FIRST_BACKOFF`] to [`MAX_BACKOFF`] while it stays missing.
 
 use std::time::Duration;
 
@@ -82,10 +82,11 @@ impl Connection {
         backoff == FIRST_BACKOFF
     }
 
-    /// The device was lost at `now` (it was open): try again after the first backoff.
-    pub fn lost(&mut self, now: Timestamp) {
+    /// The device was lost at `now` (it was open): try again after `first_wait`, then
+    /// with the backoff (failures after a loss are not said again: the loss was).
+    pub fn lost(&mut self, now: Timestamp, first_wait: Duration) {
         *self = Connection::Closed {
-            retry_at: now + FIRST_BACKOFF,
+            retry_at: now + first_wait,
             backoff: FIRST_BACKOFF * 2,
             asked: false,
         };

@@ -150,6 +150,39 @@ impl Router {
         self.links[i].id()
     }
 
+    /// Adds a link for a connection a server accepted (`tcp:a.b.c.d:port`); it lives until
+    /// [`Router::remove_link`].
+    pub fn add_connection_link(&mut self, name: &str, now: Timestamp) -> LinkId {
+        let i = self.add_link(name, LinkKind::Connection, now);
+        self.links[i].id()
+    }
+
+    /// Removes link `id` and what its queue holds (a closed connection). Returns false if
+    /// there is no such link.
+    pub fn remove_link(&mut self, id: LinkId) -> bool {
+        let Some(i) = self.index(id) else {
+            return false;
+        };
+        let link = self.links.remove(i);
+        self.queued_bytes -= link.queue.bytes();
+        true
+    }
+
+    /// Drops everything queued for link `id` (counted as dropped), e.g. telemetry that
+    /// went stale while its connection was down. Returns how many packets were dropped.
+    pub fn clear_queue(&mut self, id: LinkId) -> u64 {
+        let Some(i) = self.index(id) else {
+            return 0;
+        };
+        let queue = &mut self.links[i].queue;
+        let mut n = 0;
+        while queue.bytes() > 0 {
+            self.queued_bytes -= queue.drop_lowest();
+            n += 1;
+        }
+        n
+    }
+
     fn index(&self, id: LinkId) -> Option<usize> {
         // Ids grow with creation order and links are kept in that order.
         self.links.binary_search_by_key(&id, |l| l.id()).ok()

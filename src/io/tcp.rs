@@ -1,0 +1,260 @@
+//! The drivers of one `tcp { }` interface: a server's listening socket, whose every
+//! accepted connection gets a driver of its own, and the connection of a client, made
+//! without blocking and made again whenever the core asks. Every connection has
+//! `TCP_NODELAY` (a frame leaves at once, not when Nagle's algorithm lets it) and
+//! keepalive (a peer that vanished without a word is noticed within about a minute).
+
+use std::io;
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::os::fd::{AsRawFd, RawFd};
+use std::time::Duration;
+
+use socket2::{Domain, Protocol, Socket, TcpKeepalive, Type};
+
+use super::driver::{Driver, Progress};
+use super::resolve::resolve;
+use super::stream::StreamIo;
+use crate::config::{Remote, TcpInterface};
+use crate::routing::{Engine, InterfaceId, Timestamp};
+
+/// Connections taken per wake-up before the loop gets a turn to route.
+const ACCEPTS_PER_TURN: usize = 64;
+/// Idle time before the first keepalive probe, and between probes.
+const KEEPALIVE: Duration = Duration::from_secs(10);
+
+/// Sets the options every connection has.
+fn tune(stream: &TcpStream) -> io::Result<()> {
+    stream.set_nonblocking(true)?;
+    stream.set_nodelay(true)?;
+    let keepalive = TcpKeepalive::new()
+        .with_time(KEEPALIVE)
+        .with_interval(KEEPALIVE)
+        .with_retries(4);
+    socket2::SockRef::from(stream).set_tcp_keepalive(&keepalive)
+}
+
+/// The label of `config` in messages and counters: `tcp ADDRESS:PORT` for a server,
+/// `tcp connect HOST:PORT` for a client.
+pub fn label(config: &TcpInterface) -> String {
+    match &config.connect {
+        None => format!(
+            "tcp {}",
+            SocketAddr::new(config.local_address(), config.port)
+        ),
+        Some(remote) => format!("tcp connect {remote}"),
+    }
+}
+
+/// A server's listening socket.
+pub struct TcpListenerDriver {
+    interface: InterfaceId,
+    listener: TcpListener,
+    max_bitrate: u64,
+    accepted: Vec<Box<dyn Driver>>,
+}
+
+impl TcpListenerDriver {
+    /// Listens for `config` (a port in use stops the start, naming the block).
+    pub fn bind(config: &TcpInterface, interface: InterfaceId) -> io::Result<Self> {
+        let local = SocketAddr::new(config.local_address(), config.port);
+        let named = |e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", label(config)));
+        let socket = Socket::new(Domain::for_address(local), Type::STREAM, Some(Protocol::TCP))
+            .map_err(named)?;
+        if local.is_ipv6() && local.ip().is_unspecified() {
+            let _ = socket.set_only_v6(false);
+        }
+        socket.set_reuse_address(true).map_err(named)?;
+        socket.set_nonblocking(true).map_err(named)?;
+        socket.bind(&local.into()).map_err(named)?;
+        socket.listen(128).map_err(named)?;
+        Ok(TcpListenerDriver {
+            interface,
+            listener: socket.into(),
+            max_bitrate: config.max_bitrate.unwrap_or(0),
+            accepted: Vec::new(),
+        })
+    }
+
+    /// The bound address.
+    #[cfg(test)]
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.listener.local_addr()
+    }
+}
+
+impl Driver for TcpListenerDriver {
+    fn interface(&self) -> InterfaceId {
+        self.interface
+    }
+
+    fn fd(&self) -> Option<RawFd> {
+        Some(self.listener.as_raw_fd())
+    }
+
+    fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        for _ in 0..ACCEPTS_PER_TURN {
+            match self.listener.accept() {
+                Ok((stream, peer)) => {
+                    // A peer mapped into IPv6 is named, and judged, by its IPv4 address.
+                    let peer = match peer {
+                        SocketAddr::V6(a) => a
+                            .ip()
+                            .to_ipv4_mapped()
+                            .map_or(peer, |v4| SocketAddr::new(v4.into(), a.port())),
+                        v4 => v4,
+                    };
+                    if tune(&stream).is_err() {
+                        continue; // already gone
+                    }
+                    // Refused by the limits: dropping the stream closes it.
+                    if let Some(id) = engine.accept(self.interface, peer, self.max_bitrate, now) {
+                        self.accepted.push(Box::new(TcpStreamDriver {
+                            interface: id,
+                            stream: Some(stream),
+                            remote: None,
+                            connecting: false,
+                            io: StreamIo::default(),
+                        }));
+                    }
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // The peer gave up before we took it.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionAborted => {}
+                Err(e) => {
+                    // Out of descriptors or memory: say so, and try again next turn.
+                    engine.on_receive_failed(self.interface, &e);
+                    return Progress::Done;
+                }
+            }
+        }
+        Progress::More
+    }
+
+    fn take_accepted(&mut self) -> Option<Box<dyn Driver>> {
+        self.accepted.pop()
+    }
+
+    fn flush(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {
+        Progress::Done
+    }
+
+    fn idle(&self) -> bool {
+        true
+    }
+}
+
+/// One TCP connection: accepted by a server, or a client's.
+pub struct TcpStreamDriver {
+    interface: InterfaceId,
+    stream: Option<TcpStream>,
+    /// A client's remote (None for an accepted connection).
+    remote: Option<Remote>,
+    /// A client's connection is being made.
+    connecting: bool,
+    io: StreamIo,
+}
+
+impl TcpStreamDriver {
+    /// A client of `remote`, connected when the core asks.
+    pub fn client(remote: &Remote, interface: InterfaceId) -> Self {
+        TcpStreamDriver {
+            interface,
+            stream: None,
+            remote: Some(remote.clone()),
+            connecting: false,
+            io: StreamIo::default(),
+        }
+    }
+
+    /// Starts connecting to `remote` without waiting.
+    fn connect(remote: &Remote) -> io::Result<(TcpStream, bool)> {
+        let to = resolve(remote)?;
+        let socket = Socket::new(Domain::for_address(to), Type::STREAM, Some(Protocol::TCP))?;
+        socket.set_nonblocking(true)?;
+        let done = match socket.connect(&to.into()) {
+            Ok(()) => true,
+            Err(e) if e.raw_os_error() == Some(libc::EINPROGRESS) => false,
+            Err(e) => return Err(e),
+        };
+        let stream: TcpStream = socket.into();
+        tune(&stream)?;
+        Ok((stream, done))
+    }
+
+    /// A connection being made: Some(true) once made, Some(false) while under way,
+    /// None if it failed (reported to the core).
+    fn check_connected(&mut self, engine: &mut Engine, now: Timestamp) -> Option<bool> {
+        let stream = self.stream.as_ref()?;
+        if let Ok(Some(e)) | Err(e) = stream.take_error() {
+            engine.stream_open_failed(self.interface, now, &e);
+            return None;
+        }
+        match stream.peer_addr() {
+            Ok(_) => {
+                self.connecting = false;
+                engine.stream_opened(self.interface, now);
+                Some(true)
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotConnected => Some(false),
+            Err(e) => {
+                engine.stream_open_failed(self.interface, now, &e);
+                None
+            }
+        }
+    }
+}
+
+impl Driver for TcpStreamDriver {
+    fn interface(&self) -> InterfaceId {
+        self.interface
+    }
+
+    fn fd(&self) -> Option<RawFd> {
+        self.stream.as_ref().map(AsRawFd::as_raw_fd)
+    }
+
+    fn open(&mut self, _engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
+        let Some(remote) = &self.remote else {
+            return Ok(true);
+        };
+        let (stream, done) = Self::connect(remote)?;
+        self.stream = Some(stream);
+        self.connecting = !done;
+        Ok(done)
+    }
+
+    fn close(&mut self) {
+        self.stream = None;
+        self.connecting = false;
+        self.io.clear();
+    }
+
+    fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        if self.connecting {
+            return Progress::Done; // flush finds out how the connection went
+        }
+        match &mut self.stream {
+            Some(stream) => self.io.receive(stream, engine, self.interface, now),
+            None => Progress::Done,
+        }
+    }
+
+    fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        if self.connecting {
+            match self.check_connected(engine, now) {
+                Some(true) => {}
+                Some(false) => return Progress::Blocked, // writable means connected
+                None => return Progress::Lost,
+            }
+        }
+        match &mut self.stream {
+            Some(stream) => self.io.flush(stream, engine, self.interface, now),
+            None => Progress::Done,
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.io.idle() || self.stream.is_none()
+    }
+}
