@@ -322,10 +322,13 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     }
     for iface in &config.interfaces {
         if let Interface::Udp(u) = iface {
-            let label = format!("udp {}:{}", u.address, u.port);
+            let label = format!("udp {}:{}", u.local_address(), u.port);
             let id = engine.add_datagram_interface(label, u.max_bitrate.unwrap_or(0));
             let driver = UdpDriver::open(u, id).map_err(|e| {
-                io::Error::new(e.kind(), format!("udp {}:{}: {e}", u.address, u.port))
+                io::Error::new(
+                    e.kind(),
+                    format!("udp {}:{}: {e}", u.local_address(), u.port),
+                )
             })?;
             drivers.push(Box::new(driver));
         }

@@ -41,14 +41,20 @@ fn bind(config: &UdpInterface) -> io::Result<UdpSocket> {
             "udp {}:{}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
              may be dropped by the kernel; raise the limit with \
              `sysctl -w net.core.rmem_max={SOCKET_BUFFER}`",
-            config.address,
+            config.local_address(),
             config.port,
             got / 2 / 1024,
             SOCKET_BUFFER / 1024
         ));
     }
     socket.set_nonblocking(true)?;
-    let address = SocketAddr::V4(SocketAddrV4::new(config.address, config.port));
+    let (std::net::IpAddr::V4(ip), None) = (config.local_address(), &config.connect) else {
+        return Err(io::Error::new(
+            io::ErrorKind::Unsupported,
+            "IPv6 and 'connect' are not supported yet",
+        ));
+    };
+    let address = SocketAddr::V4(SocketAddrV4::new(ip, config.port));
     socket.bind(&address.into())?;
     Ok(socket.into())
 }
@@ -84,7 +90,7 @@ impl UdpDriver {
         let gso = sys::gso_supported(&socket);
         Ok(UdpDriver {
             interface,
-            label: format!("udp {}:{}", config.address, config.port),
+            label: format!("udp {}:{}", config.local_address(), config.port),
             socket,
             batch: RecvBatch::new(DATAGRAM_MAX),
             send_scratch: SendBatch::new(),
