@@ -198,7 +198,7 @@ fn ast_prints_header_and_tree_and_skips_semantics() {
 #[test]
 fn golden_ast_through_the_binary() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for name in ["everything", "queue"] {
+    for name in ["everything", "queue", "network"] {
         let conf = format!("tests/data/config/{name}.conf");
         let out = run_in(root, &["--ast", "--config", &conf], &[]);
         assert_eq!(out.status.code(), Some(0), "{name}");

@@ -106,9 +106,14 @@ fn udp_values() {
         "udp {\n    address 127.a.0.1;\n}",
         "2:17: expected a valid IP address",
     );
+    // A ':' makes it an IPv6 address, checked as a whole.
     check(
         "udp {\n    address 127:0:0:1;\n}",
-        "2:16: expected a valid IP address",
+        "2:13: expected a valid IP address",
+    );
+    assert!(
+        all("udp { address 10.0.0.1:80; }")
+            .contains("note: an address is written without a port here")
     );
     check(
         "udp {\n    address;\n}",
@@ -180,7 +185,7 @@ fn serial_values() {
     );
     check("serial { baudrate 57600; }", "1:1: missing device string");
     check("serial { port 1; }", "1:10: unsupported statement");
-    assert!(all("serial { port 1; }").contains("note: 'port' belongs in a 'udp' block"));
+    assert!(all("serial { port 1; }").contains("note: 'port' belongs in a 'udp' or 'tcp' block"));
     assert!(all("serial { boadrate 1; }").contains("note: did you mean 'baudrate'?"));
 }
 

@@ -2,10 +2,10 @@
 
 use mavtables::address::{Address, Subnet};
 use mavtables::config::{
-    Action, ChainId, Condition, Config, DefaultAction, Interface, QueueBounds, SerialInterface,
-    UdpInterface, load,
+    Action, ChainId, Condition, Config, DefaultAction, Interface, PeerLimits, QueueBounds,
+    SerialInterface, UdpInterface, load,
 };
-use std::net::Ipv4Addr;
+use std::net::{IpAddr, Ipv4Addr};
 
 fn config(src: &str) -> Config {
     match load(src) {
@@ -29,14 +29,20 @@ fn defaults() {
         [
             Interface::Udp(UdpInterface {
                 port: 14500,
-                address: Ipv4Addr::UNSPECIFIED,
-                max_bitrate: None
+                address: None,
+                max_bitrate: None,
+                connect: None,
+                peers: PeerLimits {
+                    max_peers: 128,
+                    allow: vec![]
+                },
             }),
             Interface::Serial(SerialInterface {
                 device: "/dev/ttyUSB0".into(),
                 baudrate: 9600,
                 flow_control: false,
-                preload: vec![]
+                preload: vec![],
+                max_bitrate: None,
             }),
         ]
     );
@@ -56,8 +62,9 @@ fn values_last_wins_and_preloads_accumulate() {
         c.interfaces[0],
         Interface::Udp(UdpInterface {
             port: 14550,
-            address: Ipv4Addr::new(127, 0, 0, 1),
-            max_bitrate: None
+            address: Some(IpAddr::V4(Ipv4Addr::new(127, 0, 0, 1))),
+            max_bitrate: None,
+            ..UdpInterface::default()
         })
     );
     assert!(matches!(&c.interfaces[1], Interface::Udp(u) if u.max_bitrate == Some(8_388_608)));
@@ -67,7 +74,8 @@ fn values_last_wins_and_preloads_accumulate() {
             device: "/dev/serial/by-id/usb-A:1-if00".into(),
             baudrate: 921_600,
             flow_control: true,
-            preload: vec![Address::new(1, 1), Address::new(62, 34)]
+            preload: vec![Address::new(1, 1), Address::new(62, 34)],
+            max_bitrate: None,
         })
     );
 }

@@ -68,7 +68,7 @@ const ACCEPT: &str = "chain default {\n    reject if HEARTBEAT;\n    accept;\n}\
 /// port 100 (system 10) that has sent `backlog` ENCAPSULATED_DATA broadcasts at time 0.
 fn backlog(max_bitrate: u64, listeners: u16, backlog: usize) -> (Engine, InterfaceId) {
     let mut e = engine(ACCEPT);
-    let iface = e.add_datagram_interface("udp test".into(), max_bitrate);
+    let iface = e.add_datagram_interface("udp test".into(), max_bitrate, Default::default());
     for l in 1..=listeners {
         let hb = frame("HEARTBEAT", &format!("{}.1", 100 + l), None);
         e.handle_datagram(iface, peer(l), &hb, Timestamp::ZERO);
@@ -178,7 +178,7 @@ fn learned(e: &mut Engine) -> Vec<String> {
 #[test]
 fn held_back_bytes_are_released_when_a_datagram_peer_goes_quiet() {
     let mut e = engine(ACCEPT);
-    let iface = e.add_datagram_interface("udp test".into(), 0);
+    let iface = e.add_datagram_interface("udp test".into(), 0, Default::default());
     let t0 = Timestamp::from_secs(5);
     e.handle_timeout(t0);
     let hb = frame("HEARTBEAT", "7.1", None);
@@ -206,7 +206,7 @@ fn held_back_bytes_are_released_when_a_datagram_peer_goes_quiet() {
 #[test]
 fn held_back_bytes_on_a_serial_line_wait_one_frame_time_more() {
     let mut e = engine(ACCEPT);
-    let iface = e.add_stream_interface("/dev/ttyX", &[], Some(9600), Timestamp::ZERO);
+    let iface = e.add_stream_interface("/dev/ttyX", &[], Some(9600), 0, Timestamp::ZERO);
     e.handle_timeout(Timestamp::ZERO);
     assert_eq!(notices(&mut e), [Notice::Open(iface)]);
     e.stream_opened(iface, Timestamp::ZERO);
@@ -222,7 +222,7 @@ fn held_back_bytes_on_a_serial_line_wait_one_frame_time_more() {
 #[test]
 fn a_silent_datagram_peer_is_removed_after_twice_the_expiry() {
     let mut e = engine(ACCEPT);
-    let iface = e.add_datagram_interface("udp test".into(), 0);
+    let iface = e.add_datagram_interface("udp test".into(), 0, Default::default());
     let hb = frame("HEARTBEAT", "7.1", None);
     e.handle_datagram(iface, peer(1), &hb, Timestamp::ZERO);
     let added = notices(&mut e);
@@ -256,7 +256,7 @@ fn a_silent_datagram_peer_is_removed_after_twice_the_expiry() {
 #[test]
 fn a_missing_device_is_retried_with_doubling_backoff_and_said_once() {
     let mut e = engine(ACCEPT);
-    let iface = e.add_stream_interface("/dev/ttyX", &[], Some(57600), Timestamp::ZERO);
+    let iface = e.add_stream_interface("/dev/ttyX", &[], Some(57600), 0, Timestamp::ZERO);
     let mut attempts = Vec::new();
     let mut now = Timestamp::ZERO;
     let mut said = Vec::new();

@@ -14,6 +14,22 @@ fuzz_target!(|data: &[u8]| {
             if let (Some(link), Some(total)) = (c.queue.link_bytes, c.queue.total_bytes) {
                 assert!(total >= link);
             }
+            for iface in &c.interfaces {
+                let (connect, peers) = match iface {
+                    config::Interface::Udp(u) => (&u.connect, &u.peers),
+                    config::Interface::Tcp(t) => (&t.connect, &t.peers),
+                    config::Interface::Serial(_) => continue,
+                };
+                assert!((1..=65535).contains(&peers.max_peers));
+                if let Some(remote) = connect {
+                    // A client has one peer: no server limits, and a real port.
+                    assert_eq!(*peers, config::PeerLimits::default());
+                    assert_ne!(remote.port, 0);
+                }
+                for range in &peers.allow {
+                    assert!(range.prefix <= if range.address.is_ipv4() { 32 } else { 128 });
+                }
+            }
         }
         Err(errors) => {
             assert!(!errors.is_empty());

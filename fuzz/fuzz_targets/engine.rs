@@ -38,8 +38,8 @@ fuzz_target!(|data: &[u8]| {
     };
     let mut e = Engine::new(&loaded.config, options);
     let mut now = Timestamp::ZERO;
-    let serial = e.add_stream_interface("serial", &[Address::new(1, 1)], Some(57_600), now);
-    let udp = e.add_datagram_interface("udp".into(), 64_000);
+    let serial = e.add_stream_interface("serial", &[Address::new(1, 1)], Some(57_600), 0, now);
+    let udp = e.add_datagram_interface("udp".into(), 64_000, Default::default());
     let peers: [SocketAddr; 3] = [1, 2, 3].map(|p| SocketAddr::from(([127, 0, 0, 1], p)));
     let mut queue = VecDeque::new();
     let mut rest = data;

@@ -37,7 +37,14 @@ pub enum Item {
         /// The `udp` keyword.
         keyword: Span,
         /// Statements in order.
-        settings: Vec<UdpSetting>,
+        settings: Vec<SocketSetting>,
+    },
+    /// `tcp { ... }`: the same statements as `udp`.
+    Tcp {
+        /// The `tcp` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<SocketSetting>,
     },
     /// `serial { ... }`
     Serial {
@@ -62,20 +69,47 @@ pub enum Item {
     },
 }
 
-/// A statement of a `udp` block; each span covers the value.
+/// A statement of a `udp` or `tcp` block; each span covers the value.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum UdpSetting {
+pub enum SocketSetting {
     /// `port N;`
     Port(Span),
-    /// `address A.B.C.D;` with the span of each octet.
-    Address {
-        /// The whole address.
-        span: Span,
-        /// The four octets.
-        octets: [Span; 4],
-    },
+    /// `address IP;`
+    Address(IpAst),
     /// `max_bitrate N;`
     MaxBitrate(Span),
+    /// `connect HOST:PORT;` or `connect [IPV6]:PORT;`
+    Connect {
+        /// The whole value.
+        span: Span,
+        /// The host, without brackets.
+        host: Span,
+        /// True when the host was written in brackets (an IPv6 address).
+        bracketed: bool,
+        /// The port digits.
+        port: Span,
+    },
+    /// `max_peers N;`
+    MaxPeers(Span),
+    /// `allow IP;` or `allow IP/BITS;`
+    Allow {
+        /// The whole value.
+        span: Span,
+        /// The address part.
+        address: IpAst,
+        /// The prefix length digits, when written.
+        prefix: Option<Span>,
+    },
+}
+
+/// A written IP address.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IpAst {
+    /// The whole address.
+    pub span: Span,
+    /// The four octets of an IPv4 address; `None` for an IPv6 address (whose syntax the
+    /// parser has checked).
+    pub octets: Option<[Span; 4]>,
 }
 
 /// A statement of a `queue` block; each span covers the value (a number of bytes).
@@ -103,6 +137,8 @@ pub enum SerialSetting {
     },
     /// `preload S.C;`
     Preload(AddressAst),
+    /// `max_bitrate N;`
+    MaxBitrate(Span),
 }
 
 /// A written MAVLink address `S.C`.

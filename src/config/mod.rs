@@ -5,13 +5,16 @@
 //! [`load`] also checks meaning and gives a [`Config`].
 
 pub mod ast;
+pub mod claims;
 pub mod diagnostic;
 pub mod lexer;
 pub mod lines;
 pub mod model;
+pub mod net;
 pub mod parser;
 pub mod printer;
 pub mod semantics;
+pub mod sockets;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};

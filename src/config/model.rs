@@ -1,14 +1,16 @@
 //! The meaning of a configuration: typed, validated values the router runs from.
 
 use crate::address::{Address, Subnet};
-use std::net::Ipv4Addr;
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+
+pub use super::net::{Host, IpRange, Remote};
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Config {
     /// What happens to a packet the chains do not decide on (default: reject).
     pub default_action: DefaultAction,
-    /// UDP and serial interfaces in file order.
+    /// UDP, TCP and serial interfaces in file order.
     pub interfaces: Vec<Interface>,
     /// Every chain, in order of first mention; rules of repeated `chain X` blocks are joined.
     pub chains: Vec<Chain>,
@@ -19,6 +21,22 @@ pub struct Config {
 }
 
 impl Config {
+    /// A configuration of `interfaces` only: every packet is accepted (`default_action
+    /// accept`, an empty `default` chain) and the queues keep their default bounds. What
+    /// command-line endpoints run.
+    pub fn accept_all(interfaces: Vec<Interface>) -> Self {
+        Config {
+            default_action: DefaultAction::Accept,
+            interfaces,
+            chains: vec![Chain {
+                name: "default".to_string(),
+                rules: Vec::new(),
+            }],
+            default_chain: ChainId(0),
+            queue: QueueBounds::default(),
+        }
+    }
+
     /// The chain with id `id`.
     pub fn chain(&self, id: ChainId) -> &Chain {
         &self.chains[id.0]
@@ -40,33 +58,131 @@ pub enum DefaultAction {
     Reject,
 }
 
-/// One `udp` or `serial` block.
+/// One `udp`, `tcp` or `serial` block.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Interface {
-    /// A UDP socket.
+    /// A UDP socket (server or client).
     Udp(UdpInterface),
     /// A serial port.
     Serial(SerialInterface),
+    /// A TCP listener or a TCP connection to one peer.
+    Tcp(TcpInterface),
 }
 
-/// A `udp { }` block with its defaults filled in.
+/// How many remotes a server block takes when `max_peers` is not given.
+pub const DEFAULT_MAX_PEERS: usize = 128;
+
+/// Which remotes a server interface takes as links.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PeerLimits {
+    /// At most this many remotes are links at once (1 – 65535).
+    pub max_peers: usize,
+    /// Remotes must be in one of these ranges; empty means any address.
+    pub allow: Vec<IpRange>,
+}
+
+impl Default for PeerLimits {
+    fn default() -> Self {
+        PeerLimits {
+            max_peers: DEFAULT_MAX_PEERS,
+            allow: Vec::new(),
+        }
+    }
+}
+
+impl PeerLimits {
+    /// Whether a remote at `ip` may become a link (by address; the count is the driver's).
+    pub fn allows(&self, ip: IpAddr) -> bool {
+        self.allow.is_empty() || self.allow.iter().any(|r| r.contains(ip))
+    }
+}
+
+/// A `udp { }` block with its defaults filled in: a server (no `connect`) that answers
+/// every remote that sends to it, or a client that sends to `connect` from the start.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct UdpInterface {
-    /// Port to listen on (default 14500).
+    /// Server: port to listen on (default 14500); client: local port (default 0 = any).
     pub port: u16,
-    /// Address to listen on (default 0.0.0.0, every address).
-    pub address: Ipv4Addr,
+    /// Local address; `None` = every address (0.0.0.0, or :: for an IPv6 peer).
+    pub address: Option<IpAddr>,
     /// Transmit limit in bits per second; `None` (also for `max_bitrate 0`) means no limit.
     pub max_bitrate: Option<u64>,
+    /// `Some` makes the block a client of this remote.
+    pub connect: Option<Remote>,
+    /// Which remotes a server takes (defaults for a client, where it has no effect).
+    pub peers: PeerLimits,
 }
 
 impl Default for UdpInterface {
     fn default() -> Self {
         UdpInterface {
             port: 14500,
-            address: Ipv4Addr::UNSPECIFIED,
+            address: None,
             max_bitrate: None,
+            connect: None,
+            peers: PeerLimits::default(),
         }
+    }
+}
+
+impl UdpInterface {
+    /// The address to bind: `address`, else every address of the peer's family (IPv4
+    /// unless the block connects to an IPv6 address).
+    pub fn local_address(&self) -> IpAddr {
+        local_address(self.address, self.connect.as_ref())
+    }
+}
+
+/// A `tcp { }` block with its defaults filled in: a server (no `connect`) where every
+/// accepted connection is a link of its own, or a client of one remote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TcpInterface {
+    /// Server: port to listen on (default 5760); unused by a client.
+    pub port: u16,
+    /// Server: address to listen on; client: address to connect from. `None` = every
+    /// address (0.0.0.0, or :: for an IPv6 peer).
+    pub address: Option<IpAddr>,
+    /// Transmit limit per link in bits per second; `None` means no limit.
+    pub max_bitrate: Option<u64>,
+    /// `Some` makes the block a client of this remote.
+    pub connect: Option<Remote>,
+    /// Which remotes a server takes (defaults for a client, where it has no effect).
+    pub peers: PeerLimits,
+}
+
+impl TcpInterface {
+    /// The port a `tcp` server listens on unless `port` says otherwise.
+    pub const DEFAULT_PORT: u16 = 5760;
+
+    /// The address to bind: `address`, else every address of the peer's family.
+    pub fn local_address(&self) -> IpAddr {
+        local_address(self.address, self.connect.as_ref())
+    }
+}
+
+impl Default for TcpInterface {
+    fn default() -> Self {
+        TcpInterface {
+            port: Self::DEFAULT_PORT,
+            address: None,
+            max_bitrate: None,
+            connect: None,
+            peers: PeerLimits::default(),
+        }
+    }
+}
+
+fn local_address(address: Option<IpAddr>, connect: Option<&Remote>) -> IpAddr {
+    match (address, connect) {
+        (Some(ip), _) => ip,
+        (
+            None,
+            Some(Remote {
+                host: Host::Ip(IpAddr::V6(_)),
+                ..
+            }),
+        ) => IpAddr::V6(Ipv6Addr::UNSPECIFIED),
+        (None, _) => IpAddr::V4(Ipv4Addr::UNSPECIFIED),
     }
 }
 
@@ -81,6 +197,8 @@ pub struct SerialInterface {
     pub flow_control: bool,
     /// Addresses known to be reachable on this port before they send anything.
     pub preload: Vec<Address>,
+    /// Transmit limit in bits per second; `None` (also for `max_bitrate 0`) means no limit.
+    pub max_bitrate: Option<u64>,
 }
 
 /// The `queue { link_bytes N; total_bytes N; }` block: how many bytes of packets (each

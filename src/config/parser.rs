@@ -7,11 +7,25 @@
 use super::ast::*;
 use super::diagnostic::{Diagnostic, Position};
 use super::lexer::{Cursor, is_word_char};
-use super::{Span, suggest};
+use super::{Span, net, suggest};
+use std::net::{Ipv4Addr, Ipv6Addr};
 
-const TOP_LEVEL: &[&str] = &["default_action", "udp", "serial", "queue", "chain"];
-const UDP_STATEMENTS: &[&str] = &["port", "address", "max_bitrate"];
-const SERIAL_STATEMENTS: &[&str] = &["device", "baudrate", "flow_control", "preload"];
+const TOP_LEVEL: &[&str] = &["default_action", "udp", "tcp", "serial", "queue", "chain"];
+const UDP_STATEMENTS: &[&str] = &[
+    "port",
+    "address",
+    "max_bitrate",
+    "connect",
+    "max_peers",
+    "allow",
+];
+const SERIAL_STATEMENTS: &[&str] = &[
+    "device",
+    "baudrate",
+    "flow_control",
+    "preload",
+    "max_bitrate",
+];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
 const ACTIONS: &[&str] = &["accept", "reject", "call", "goto"];
 
@@ -79,8 +93,16 @@ impl<'a> Parser<'a> {
             }
             "udp" => {
                 self.c.word();
-                let settings = self.block(span, Self::udp_setting)?;
+                let settings = self.block(span, Self::socket_setting)?;
                 Ok(Item::Udp {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "tcp" => {
+                self.c.word();
+                let settings = self.block(span, Self::socket_setting)?;
+                Ok(Item::Tcp {
                     keyword: span,
                     settings,
                 })
@@ -132,7 +154,8 @@ impl<'a> Parser<'a> {
         }
     }
 
-    fn udp_setting(&mut self) -> Result<UdpSetting> {
+    /// A statement of a `udp` or `tcp` block.
+    fn socket_setting(&mut self) -> Result<SocketSetting> {
         let (span, word) = match self.c.peek_word() {
             Some(found) => found,
             None => return Err(self.stray("a statement or '}'")),
@@ -140,20 +163,84 @@ impl<'a> Parser<'a> {
         let setting = match word {
             "port" => {
                 self.c.word();
-                UdpSetting::Port(self.number("expected a valid port number")?)
+                SocketSetting::Port(self.number("expected a valid port number")?)
             }
             "address" => {
                 self.c.word();
-                self.ipv4()?
+                SocketSetting::Address(self.ip()?)
             }
             "max_bitrate" => {
                 self.c.word();
-                UdpSetting::MaxBitrate(self.number("expected a valid bitrate")?)
+                SocketSetting::MaxBitrate(self.number("expected a valid bitrate")?)
+            }
+            "connect" => {
+                self.c.word();
+                self.connect()?
+            }
+            "max_peers" => {
+                self.c.word();
+                SocketSetting::MaxPeers(self.number("expected a valid number of peers")?)
+            }
+            "allow" => {
+                self.c.word();
+                self.allow()?
             }
             _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
         };
         self.semicolon(false)?;
         Ok(setting)
+    }
+
+    /// `HOST:PORT` or `[IPV6]:PORT`: the value runs to whitespace, `;`, `#` or a brace.
+    fn connect(&mut self) -> Result<SocketSetting> {
+        let at = self.c.expected_at();
+        let span = self
+            .c
+            .take_while(|c| !c.is_whitespace() && !matches!(c, ';' | '#' | '{' | '}'));
+        if span.is_empty() {
+            return Err(Diagnostic::new(at, "expected a host and port")
+                .with_note("write HOST:PORT, e.g. 192.168.1.50:14550 or [fd00::7]:14550"));
+        }
+        let text = self.c.text(span);
+        let at = |r: std::ops::Range<usize>| Span::new(span.start + r.start, span.start + r.end);
+        match net::split_host_port(text) {
+            Ok(hp) => Ok(SocketSetting::Connect {
+                span,
+                host: at(hp.host),
+                bracketed: hp.bracketed,
+                port: at(hp.port),
+            }),
+            Err(e) => {
+                let mut d = Diagnostic::new(at(e.at), e.message);
+                if let Some(note) = e.note {
+                    d = d.with_note(note);
+                }
+                Err(d)
+            }
+        }
+    }
+
+    /// `IP` or `IP/BITS`.
+    fn allow(&mut self) -> Result<SocketSetting> {
+        let address = self.ip()?;
+        let prefix = if self.c.eat('/') {
+            let bits = self.c.digits();
+            if bits.is_empty() {
+                return Err(Diagnostic::new(
+                    self.c.char_span(),
+                    "expected a prefix length (a number of bits) after '/'",
+                ));
+            }
+            Some(bits)
+        } else {
+            None
+        };
+        let end = prefix.map_or(address.span.end, |p| p.end);
+        Ok(SocketSetting::Allow {
+            span: Span::new(address.span.start, end),
+            address,
+            prefix,
+        })
     }
 
     fn serial_setting(&mut self) -> Result<SerialSetting> {
@@ -192,6 +279,10 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 self.c.skip_padding();
                 SerialSetting::Preload(self.address(INVALID_ADDRESS)?)
+            }
+            "max_bitrate" => {
+                self.c.word();
+                SerialSetting::MaxBitrate(self.number("expected a valid bitrate")?)
             }
             _ => return Err(unsupported(span, word, SERIAL_STATEMENTS)),
         };
@@ -378,10 +469,34 @@ impl<'a> Parser<'a> {
         })
     }
 
-    fn ipv4(&mut self) -> Result<UdpSetting> {
+    /// An IPv4 address (`a.b.c.d`, octet ranges checked later) or an IPv6 address (any
+    /// run of hexadecimal digits, `:` and `.` holding a `:`, checked here).
+    fn ip(&mut self) -> Result<IpAst> {
         const MESSAGE: &str = "expected a valid IP address";
         let at = self.c.expected_at();
         let start = self.c.pos();
+        let rest = &self.src[start..];
+        let len = rest
+            .find(|c: char| !(c.is_ascii_hexdigit() || c == ':' || c == '.'))
+            .unwrap_or(rest.len());
+        let run = &rest[..len];
+        if run.contains(':') {
+            let span = Span::new(start, start + len);
+            if run.parse::<Ipv6Addr>().is_err() {
+                let note = match run.rsplit_once(':') {
+                    Some((ip, _)) if ip.parse::<Ipv4Addr>().is_ok() => {
+                        "an address is written without a port here"
+                    }
+                    _ => {
+                        "an IPv6 address is hexadecimal groups separated by ':', e.g. fd00::7 or ::"
+                    }
+                };
+                return Err(Diagnostic::new(span, MESSAGE).with_note(note));
+            }
+            self.c
+                .take_while(|c| c.is_ascii_hexdigit() || c == ':' || c == '.');
+            return Ok(IpAst { span, octets: None });
+        }
         let mut octets = [Span::new(0, 0); 4];
         for (i, octet) in octets.iter_mut().enumerate() {
             if i > 0 && !self.c.eat('.') {
@@ -396,9 +511,9 @@ impl<'a> Parser<'a> {
                 });
             }
         }
-        Ok(UdpSetting::Address {
+        Ok(IpAst {
             span: Span::new(start, octets[3].end),
-            octets,
+            octets: Some(octets),
         })
     }
 
@@ -483,14 +598,19 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
     if let Some(note) = suggest::did_you_mean(word, candidates.iter().copied()) {
         d = d.with_note(note);
     } else {
-        for (block, list) in [
+        let homes: Vec<&str> = [
             ("udp", UDP_STATEMENTS),
+            ("tcp", UDP_STATEMENTS),
             ("serial", SERIAL_STATEMENTS),
             ("queue", QUEUE_STATEMENTS),
-        ] {
-            if list.contains(&word) && candidates != list {
-                d = d.with_note(format!("'{word}' belongs in a '{block}' block"));
-            }
+        ]
+        .into_iter()
+        .filter(|(_, list)| list.contains(&word) && candidates != *list)
+        .map(|(block, _)| block)
+        .collect();
+        if let Some(first) = homes.first() {
+            let others: String = homes[1..].iter().map(|b| format!(" or '{b}'")).collect();
+            d = d.with_note(format!("'{word}' belongs in a '{first}'{others} block"));
         }
     }
     d

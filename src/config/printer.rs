@@ -65,17 +65,8 @@ impl Printer<'_, '_> {
                 self.node(0, *keyword, "default_action", None);
                 self.node(1, *value, if *accept { "accept" } else { "reject" }, None);
             }
-            Item::Udp { keyword, settings } => {
-                self.node(0, *keyword, "udp", None);
-                for s in settings {
-                    let (name, span) = match s {
-                        UdpSetting::Port(v) => ("port", *v),
-                        UdpSetting::Address { span, .. } => ("address", *span),
-                        UdpSetting::MaxBitrate(v) => ("max_bitrate", *v),
-                    };
-                    self.node(1, span, name, Some(span));
-                }
-            }
+            Item::Udp { keyword, settings } => self.socket(*keyword, "udp", settings),
+            Item::Tcp { keyword, settings } => self.socket(*keyword, "tcp", settings),
             Item::Serial { keyword, settings } => {
                 self.node(0, *keyword, "serial", None);
                 for s in settings {
@@ -84,6 +75,7 @@ impl Printer<'_, '_> {
                         SerialSetting::Baudrate(v) => ("baudrate", *v),
                         SerialSetting::FlowControl { span, .. } => ("flow_control", *span),
                         SerialSetting::Preload(a) => ("preload", a.span),
+                        SerialSetting::MaxBitrate(v) => ("max_bitrate", *v),
                     };
                     self.node(1, span, name, Some(span));
                 }
@@ -104,6 +96,23 @@ impl Printer<'_, '_> {
                     self.rule(rule);
                 }
             }
+        }
+    }
+
+    /// A `udp` or `tcp` block: the block node, then one node per statement with its raw
+    /// value (`connect [fd00::7]:14550`, `allow 192.168.1.0/24`).
+    fn socket(&mut self, keyword: Span, name: &str, settings: &[SocketSetting]) {
+        self.node(0, keyword, name, None);
+        for s in settings {
+            let (name, span) = match s {
+                SocketSetting::Port(v) => ("port", *v),
+                SocketSetting::Address(ip) => ("address", ip.span),
+                SocketSetting::MaxBitrate(v) => ("max_bitrate", *v),
+                SocketSetting::Connect { span, .. } => ("connect", *span),
+                SocketSetting::MaxPeers(v) => ("max_peers", *v),
+                SocketSetting::Allow { span, .. } => ("allow", *span),
+            };
+            self.node(1, span, name, Some(span));
         }
     }
 

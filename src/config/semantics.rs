@@ -4,16 +4,16 @@
 
 use super::ast::{
     self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst,
-    UdpSetting,
 };
+use super::claims::Claim;
 use super::diagnostic::Diagnostic;
 use super::lines::LineIndex;
 use super::model::*;
+use super::sockets::{self, Kind};
 use super::{Span, suggest};
 use crate::address::{Address, PrefixMask, Subnet};
 use crate::dialect;
 use std::collections::HashMap;
-use std::net::Ipv4Addr;
 
 /// A valid configuration plus the warnings found while checking it.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -37,10 +37,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     cx.register_chains();
     let mut default_action = DefaultAction::Reject;
     let mut interfaces = Vec::new();
-    // Interfaces so far with the line of their keyword, to catch two claiming one
-    // socket or device.
-    let mut udp_seen: Vec<(Ipv4Addr, u16, usize)> = Vec::new();
-    let mut serial_seen: Vec<(String, usize)> = Vec::new();
+    // What the interfaces so far hold, with the line of their keyword, to catch two
+    // claiming one socket or device.
+    let mut claimed: Vec<(Claim, usize)> = Vec::new();
     let mut queue = QueueBounds::default();
     // Line of the first `queue` block: a second one is an error.
     let mut queue_line: Option<usize> = None;
@@ -61,16 +60,21 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                     DefaultAction::Reject
                 };
             }
-            Item::Udp { keyword, settings } => {
-                if let Some(udp) = cx.udp(settings) {
-                    cx.no_shared_port(*keyword, &udp, &mut udp_seen);
-                    interfaces.push(Interface::Udp(udp));
+            Item::Udp { keyword, settings } | Item::Tcp { keyword, settings } => {
+                let kind = match item {
+                    Item::Tcp { .. } => Kind::Tcp,
+                    _ => Kind::Udp,
+                };
+                if let Some(iface) = sockets::check(ast, kind, settings, &mut cx.errors) {
+                    cx.no_shared_claim(*keyword, &iface, &mut claimed);
+                    interfaces.push(iface);
                 }
             }
             Item::Serial { keyword, settings } => {
                 if let Some(serial) = cx.serial(*keyword, settings) {
-                    cx.no_shared_device(*keyword, &serial, &mut serial_seen);
-                    interfaces.push(Interface::Serial(serial));
+                    let serial = Interface::Serial(serial);
+                    cx.no_shared_claim(*keyword, &serial, &mut claimed);
+                    interfaces.push(serial);
                 }
             }
             Item::Queue { keyword, settings } => {
@@ -176,95 +180,40 @@ impl<'a> Checker<'a, '_> {
         }
     }
 
-    fn udp(&mut self, settings: &[UdpSetting]) -> Option<UdpInterface> {
-        let mut udp = UdpInterface::default();
-        let mut ok = true;
-        for s in settings {
-            match s {
-                UdpSetting::Port(v) => match self.unsigned(*v, 0, u16::MAX.into(), "port number") {
-                    Some(p) => udp.port = p as u16,
-                    None => ok = false,
-                },
-                UdpSetting::Address { octets, .. } => {
-                    let mut bytes = [0u8; 4];
-                    for (b, span) in bytes.iter_mut().zip(octets) {
-                        let text = self.text(*span);
-                        match text.parse::<u8>() {
-                            Ok(v) => *b = v,
-                            Err(_) => {
-                                ok = false;
-                                self.error(Diagnostic::new(
-                                    *span,
-                                    format!("Address octet ({text}) is outside of the allowed range (0 - 255)."),
-                                ));
-                            }
-                        }
-                    }
-                    udp.address = Ipv4Addr::from(bytes);
-                }
-                UdpSetting::MaxBitrate(v) => match self.unsigned(*v, 0, u64::MAX, "bitrate") {
-                    Some(b) => udp.max_bitrate = (b > 0).then_some(b),
-                    None => ok = false,
-                },
-            }
-        }
-        ok.then_some(udp)
-    }
-
-    /// Two `udp` blocks cannot listen on one port where their addresses overlap (the
-    /// same address, or either being 0.0.0.0): the second could not be bound. Port 0
-    /// (any free port) never clashes.
-    fn no_shared_port(
+    /// Two interfaces cannot hold one local socket or one serial device: the second
+    /// could not be bound, or they would split a device's bytes between them.
+    fn no_shared_claim(
         &mut self,
         keyword: Span,
-        udp: &UdpInterface,
-        seen: &mut Vec<(Ipv4Addr, u16, usize)>,
+        iface: &Interface,
+        seen: &mut Vec<(Claim, usize)>,
     ) {
-        let line = self.line(keyword);
-        let clash = seen.iter().find(|(address, port, _)| {
-            *port == udp.port
-                && udp.port != 0
-                && (*address == udp.address
-                    || address.is_unspecified()
-                    || udp.address.is_unspecified())
-        });
-        if let Some((address, port, first)) = clash {
-            self.error(
-                Diagnostic::new(
+        let Some(claim) = Claim::of(iface) else {
+            return;
+        };
+        if let Some((other, first)) = seen.iter().find(|(c, _)| c.clashes(&claim)) {
+            let d = match &claim {
+                Claim::Device(device) => Diagnostic::new(
                     keyword,
                     format!(
-                        "udp interface {}:{} clashes with the udp interface on line {first} ({address}:{port})",
-                        udp.address, udp.port
-                    ),
-                )
-                .with_note("two interfaces cannot listen on one port of one address; give this one another port"),
-            );
-        }
-        seen.push((udp.address, udp.port, line));
-    }
-
-    /// Two `serial` blocks cannot name one device: they would split its bytes between
-    /// them.
-    fn no_shared_device(
-        &mut self,
-        keyword: Span,
-        serial: &SerialInterface,
-        seen: &mut Vec<(String, usize)>,
-    ) {
-        let line = self.line(keyword);
-        if let Some((_, first)) = seen.iter().find(|(d, _)| *d == serial.device) {
-            self.error(
-                Diagnostic::new(
-                    keyword,
-                    format!(
-                        "serial device '{}' is already used by the serial interface on line {first}",
-                        serial.device
+                        "serial device '{device}' is already used by the serial interface on line {first}"
                     ),
                 )
                 .with_note("each device can belong to one serial block only"),
-            );
+                _ => {
+                    let kind = claim.kind();
+                    Diagnostic::new(
+                        keyword,
+                        format!(
+                            "{kind} interface {claim} clashes with the {kind} interface on line {first} ({other})"
+                        ),
+                    )
+                    .with_note("two interfaces cannot listen on one port of one address; give this one another port")
+                }
+            };
+            self.error(d);
         }
-        seen.push((serial.device.clone(), line));
+        seen.push((claim, self.line(keyword)));
     }
 
     /// The bounds of a `queue` block; every bad value is reported.
@@ -330,6 +279,7 @@ impl<'a> Checker<'a, '_> {
             baudrate: 9600,
             flow_control: false,
             preload: Vec::new(),
+            max_bitrate: None,
         };
         let mut ok = true;
         for s in settings {
@@ -344,6 +294,10 @@ impl<'a> Checker<'a, '_> {
                 SerialSetting::FlowControl { enabled, .. } => serial.flow_control = *enabled,
                 SerialSetting::Preload(a) => match self.address(a) {
                     Some(a) => serial.preload.push(a),
+                    None => ok = false,
+                },
+                SerialSetting::MaxBitrate(v) => match self.unsigned(*v, 0, u64::MAX, "bitrate") {
+                    Some(b) => serial.max_bitrate = (b > 0).then_some(b),
                     None => ok = false,
                 },
             }

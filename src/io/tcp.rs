@@ -74,12 +74,6 @@ impl TcpListenerDriver {
             accepted: Vec::new(),
         })
     }
-
-    /// The bound address.
-    #[cfg(test)]
-    pub fn local_addr(&self) -> io::Result<SocketAddr> {
-        self.listener.local_addr()
-    }
 }
 
 impl Driver for TcpListenerDriver {

@@ -19,11 +19,14 @@ pub enum Decision {
 }
 
 /// Decides what happens to a packet with `message_id` from `source`, whose payload targets
-/// `target`, on a link whose addresses are `pool`.
+/// `target`, on a link whose addresses are `pool`. A link that `reaches_unknown` (a
+/// client, whose peer may never speak first) takes broadcasts while its pool is empty,
+/// filtered for the broadcast address `0.0`.
 #[inline]
 pub fn decide(
     filter: &mut Filter,
     pool: &AddressPool,
+    reaches_unknown: bool,
     now: Timestamp,
     message_id: u32,
     source: Address,
@@ -38,7 +41,18 @@ pub fn decide(
         | Some(Address {
             system: 0,
             component: 0,
-        }) => best(filter, pool.addresses(now), message_id, source),
+        }) => {
+            let mut candidates = pool.addresses(now).peekable();
+            if reaches_unknown && candidates.peek().is_none() {
+                return best(
+                    filter,
+                    std::iter::once(Address::new(0, 0)),
+                    message_id,
+                    source,
+                );
+            }
+            best(filter, candidates, message_id, source)
+        }
         // System broadcast S.0: every address of system S; none known is silent.
         Some(Address {
             system,

@@ -29,7 +29,7 @@ use std::time::Duration;
 
 use slab::Slab;
 
-use super::admission::{self, Refusal};
+use super::admission;
 use super::counters::InterfaceReport;
 use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
@@ -168,10 +168,7 @@ impl Engine {
         max_bitrate: u64,
         now: Timestamp,
     ) -> InterfaceId {
-        let link = self
-            .router
-            .add_serial_link(link_name, &[], now, &mut self.out);
-        self.take_output();
+        let link = self.router.add_client_link(link_name, now);
         self.push_interface(Interface::new(
             label.clone(),
             label,
@@ -242,10 +239,7 @@ impl Engine {
         max_bitrate: u64,
         now: Timestamp,
     ) -> InterfaceId {
-        let link = self
-            .router
-            .add_serial_link(link_name, &[], now, &mut self.out);
-        self.take_output();
+        let link = self.router.add_client_link(link_name, now);
         self.push_interface(Interface::new(
             label.clone(),
             label,
@@ -527,33 +521,44 @@ impl Engine {
             }
             Kind::Stream {
                 link, connection, ..
+            } if connection.is_open() => {
+                Self::drain_link(&mut take, router, *link, None, left, queue, pace_deadline);
             }
-            | Kind::DatagramClient {
+            Kind::DatagramClient {
                 link,
                 connection,
-                target: _,
+                target: Some(to),
                 ..
             } if connection.is_open() => {
-                let to = match kind_target(kind) {
-                    Ok(to) => to,
-                    Err(()) => return,
-                };
-                let link = *link;
-                while left > 0 {
-                    match take(router, link) {
-                        Ok(Some(packet)) => {
-                            queue.push_back(Transmit { link, to, packet });
-                            left -= 1;
-                        }
-                        Ok(None) => break,
-                        Err(t) => {
-                            *pace_deadline = Some(t);
-                            break;
-                        }
-                    }
-                }
+                let to = Some(*to);
+                Self::drain_link(&mut take, router, *link, to, left, queue, pace_deadline);
             }
             Kind::Stream { .. } | Kind::DatagramClient { .. } | Kind::Listener { .. } => {}
+        }
+    }
+
+    /// Hands out up to `left` packets of `link` (going `to`) as far as `take` lets them.
+    fn drain_link(
+        take: &mut impl FnMut(&mut Router, LinkId) -> Result<Option<Packet>, Timestamp>,
+        router: &mut Router,
+        link: LinkId,
+        to: Option<SocketAddr>,
+        mut left: usize,
+        queue: &mut VecDeque<Transmit>,
+        pace_deadline: &mut Option<Timestamp>,
+    ) {
+        while left > 0 {
+            match take(router, link) {
+                Ok(Some(packet)) => {
+                    queue.push_back(Transmit { link, to, packet });
+                    left -= 1;
+                }
+                Ok(None) => break,
+                Err(t) => {
+                    *pace_deadline = Some(t);
+                    break;
+                }
+            }
         }
     }
 
@@ -840,11 +845,3 @@ impl Engine {
     }
 }
 
-/// Where the packets of a client or stream go: a stream has no address (Ok(None)); a
-/// datagram client goes to its target, and holds its packets while it has none (Err).
-fn kind_target(kind: &Kind) -> Result<Option<SocketAddr>, ()> {
-    match kind {
-        Kind::DatagramClient { target, .. } => target.map(Some).ok_or(()),
-        _ => Ok(None),
-    }
-}

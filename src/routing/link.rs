@@ -24,6 +24,11 @@ pub enum LinkKind {
     Udp,
     /// A connection accepted by a TCP server interface: removed when it closes.
     Connection,
+    /// A UDP or TCP client: configured, lives as long as the router. Its peer may never
+    /// speak first (a ground station waits for a vehicle), so before it has taught the
+    /// link any address, broadcasts are filtered for the broadcast address `0.0` and
+    /// sent.
+    Client,
 }
 
 /// A link's name (for logs), kind, learned addresses and outgoing queue.
@@ -76,6 +81,12 @@ impl Link {
     /// Serial or UDP.
     pub fn kind(&self) -> LinkKind {
         self.kind
+    }
+
+    /// True if broadcasts reach this link before it has learned any address (see
+    /// [`LinkKind::Client`]; accepted connections likewise).
+    pub fn reaches_the_unknown(&self) -> bool {
+        matches!(self.kind, LinkKind::Client | LinkKind::Connection)
     }
 
     /// The addresses reachable through this link.

@@ -150,6 +150,12 @@ impl Router {
         self.links[i].id()
     }
 
+    /// Adds the link of a UDP or TCP client named `name` (see [`LinkKind::Client`]).
+    pub fn add_client_link(&mut self, name: &str, now: Timestamp) -> LinkId {
+        let i = self.add_link(name, LinkKind::Client, now);
+        self.links[i].id()
+    }
+
     /// Adds a link for a connection a server accepted (`tcp:a.b.c.d:port`); it lives until
     /// [`Router::remove_link`].
     pub fn add_connection_link(&mut self, name: &str, now: Timestamp) -> LinkId {
@@ -230,7 +236,15 @@ impl Router {
         let mut packet: Option<Packet> = None;
         for i in 0..self.links.len() {
             let link = &self.links[i];
-            let decision = decide(&mut self.filter, &link.pool, now, message_id, src, target);
+            let decision = decide(
+                &mut self.filter,
+                &link.pool,
+                link.reaches_the_unknown(),
+                now,
+                message_id,
+                src,
+                target,
+            );
             match decision {
                 Decision::Silent => {}
                 Decision::Accept(priority) => {

@@ -1,0 +1,279 @@
+//! The meaning of a `udp` or `tcp` block: values checked and defaults filled in, and the
+//! rules of clients (a block with `connect`) against servers. Every error found is
+//! collected, in statement order.
+
+use super::Span;
+use super::ast::{Ast, IpAst, SocketSetting};
+use super::diagnostic::Diagnostic;
+use super::model::*;
+use super::net::{self, TextError};
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+
+/// Which block is being checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A `udp` block.
+    Udp,
+    /// A `tcp` block.
+    Tcp,
+}
+
+/// Checks the statements of one `udp` or `tcp` block; `None` after reporting its errors.
+pub fn check(
+    ast: &Ast<'_>,
+    kind: Kind,
+    settings: &[SocketSetting],
+    errors: &mut Vec<Diagnostic>,
+) -> Option<Interface> {
+    let mut cx = Block {
+        ast,
+        errors,
+        ok: true,
+    };
+    let mut port = None;
+    let mut address = None;
+    let mut max_bitrate = None;
+    let mut connect: Option<(Remote, Span)> = None;
+    let mut connect_at: Option<Span> = None;
+    let mut max_peers = None;
+    let mut allow = Vec::new();
+    let mut first_allow = None;
+    for s in settings {
+        match s {
+            SocketSetting::Port(v) => {
+                port = cx
+                    .number(*v, 0, 65535, "port number")
+                    .map(|p| (p as u16, *v));
+            }
+            SocketSetting::Address(ip) => address = cx.ip(ip).map(|a| (a, ip.span)),
+            SocketSetting::MaxBitrate(v) => {
+                max_bitrate = cx
+                    .number(*v, 0, u64::MAX, "bitrate")
+                    .map(|b| (b > 0).then_some(b));
+            }
+            SocketSetting::Connect {
+                span,
+                host,
+                bracketed,
+                port,
+            } => {
+                if let Some(first) = connect_at {
+                    let line = super::Position::of(ast.src, first.start).line;
+                    cx.error(
+                        Diagnostic::new(*span, "a block connects to one peer only")
+                            .with_note(format!(
+                                "this block already connects on line {line}; write another block for another peer"
+                            )),
+                    );
+                    continue;
+                }
+                connect_at = Some(*span);
+                let host_value = cx.located(*host, net::host(ast.text(*host), *bracketed));
+                let port_value = cx.located(*port, net::port(ast.text(*port), 1));
+                if let (Some(host), Some(port)) = (host_value, port_value) {
+                    connect = Some((Remote { host, port }, *span));
+                }
+            }
+            SocketSetting::MaxPeers(v) => {
+                max_peers = cx
+                    .number(*v, 1, 65535, "max_peers")
+                    .map(|n| (n as usize, *v));
+            }
+            SocketSetting::Allow {
+                span,
+                address,
+                prefix,
+            } => {
+                first_allow.get_or_insert(*span);
+                if let Some(range) = cx.range(address, *prefix) {
+                    allow.push(range);
+                }
+            }
+        }
+    }
+    let block = match kind {
+        Kind::Udp => "udp",
+        Kind::Tcp => "tcp",
+    };
+    if let Some((remote, _)) = &connect {
+        if kind == Kind::Tcp
+            && let Some((_, at)) = port
+        {
+            cx.error(
+                Diagnostic::new(at, "a TCP client has no local port to set")
+                    .with_note("leave out 'port', or leave out 'connect' to listen on this port"),
+            );
+        }
+        for (name, at) in [
+            ("max_peers", max_peers.map(|(_, at)| at)),
+            ("allow", first_allow),
+        ] {
+            if let Some(at) = at {
+                cx.error(
+                    Diagnostic::new(at, format!("'{name}' applies to server blocks only"))
+                        .with_note(format!(
+                            "this {block} block is a client of {remote} (it has 'connect'); a client has one peer"
+                        )),
+                );
+            }
+        }
+        if let (Some((local, at)), Host::Ip(peer)) = (address, &remote.host)
+            && local.is_ipv4() != peer.is_ipv4()
+        {
+            cx.error(
+                Diagnostic::new(
+                    at,
+                    format!(
+                        "address {local} is {}, but the block connects to the {} address {peer}",
+                        family(local),
+                        family(*peer)
+                    ),
+                )
+                .with_note("a socket talks to peers of its own family; leave out 'address' or use one of that family"),
+            );
+        }
+    }
+    if !cx.ok {
+        return None;
+    }
+    let address = address.map(|(a, _)| a);
+    let max_bitrate = max_bitrate.flatten();
+    let peers = PeerLimits {
+        max_peers: max_peers.map_or(DEFAULT_MAX_PEERS, |(n, _)| n),
+        allow,
+    };
+    let connect = connect.map(|(r, _)| r);
+    Some(match kind {
+        Kind::Udp => Interface::Udp(UdpInterface {
+            // A client's local port is any free one unless given.
+            port: port.map_or(if connect.is_some() { 0 } else { 14500 }, |(p, _)| p),
+            address,
+            max_bitrate,
+            connect,
+            peers,
+        }),
+        Kind::Tcp => Interface::Tcp(TcpInterface {
+            port: port.map_or(TcpInterface::DEFAULT_PORT, |(p, _)| p),
+            address,
+            max_bitrate,
+            connect,
+            peers,
+        }),
+    })
+}
+
+fn family(ip: IpAddr) -> &'static str {
+    if ip.is_ipv4() { "IPv4" } else { "IPv6" }
+}
+
+struct Block<'a, 'b, 'e> {
+    ast: &'b Ast<'a>,
+    errors: &'e mut Vec<Diagnostic>,
+    ok: bool,
+}
+
+impl Block<'_, '_, '_> {
+    fn error(&mut self, d: Diagnostic) {
+        self.ok = false;
+        self.errors.push(d);
+    }
+
+    /// The value of `result`, or its error placed inside `span` (the text it read).
+    fn located<T>(&mut self, span: Span, result: Result<T, TextError>) -> Option<T> {
+        match result {
+            Ok(v) => Some(v),
+            Err(e) => {
+                let at = Span::new(span.start + e.at.start, span.start + e.at.end);
+                let mut d = Diagnostic::new(at, e.message);
+                if let Some(note) = e.note {
+                    d = d.with_note(note);
+                }
+                self.error(d);
+                None
+            }
+        }
+    }
+
+    /// A decimal number within `min..=max`, or an error naming `what`.
+    fn number(&mut self, span: Span, min: u64, max: u64, what: &str) -> Option<u64> {
+        let text = self.ast.text(span);
+        match text.parse::<u64>() {
+            Ok(v) if (min..=max).contains(&v) => Some(v),
+            _ => {
+                self.error(Diagnostic::new(
+                    span,
+                    format!("{what} ({text}) is outside of the allowed range ({min} - {max})"),
+                ));
+                None
+            }
+        }
+    }
+
+    /// A written address: IPv4 octets are range-checked (every bad one reported); IPv6
+    /// syntax was checked by the parser.
+    fn ip(&mut self, ip: &IpAst) -> Option<IpAddr> {
+        let Some(octets) = ip.octets else {
+            let text = self.ast.text(ip.span);
+            return match text.parse::<Ipv6Addr>() {
+                Ok(v6) => Some(IpAddr::V6(v6)),
+                Err(_) => {
+                    self.error(Diagnostic::new(ip.span, "expected a valid IP address"));
+                    None
+                }
+            };
+        };
+        let mut bytes = [0u8; 4];
+        let mut ok = true;
+        for (b, span) in bytes.iter_mut().zip(octets) {
+            let text = self.ast.text(span);
+            match text.parse::<u8>() {
+                Ok(v) => *b = v,
+                Err(_) => {
+                    ok = false;
+                    self.error(Diagnostic::new(
+                        span,
+                        format!(
+                            "Address octet ({text}) is outside of the allowed range (0 - 255)."
+                        ),
+                    ));
+                }
+            }
+        }
+        ok.then(|| IpAddr::V4(Ipv4Addr::from(bytes)))
+    }
+
+    /// An `allow` range; without a prefix, the single address.
+    fn range(&mut self, address: &IpAst, prefix: Option<Span>) -> Option<IpRange> {
+        let ip = self.ip(address);
+        let max: u8 = match ip {
+            Some(IpAddr::V6(_)) => 128,
+            Some(IpAddr::V4(_)) => 32,
+            None if address.octets.is_some() => 32,
+            None => 128,
+        };
+        let prefix = match prefix {
+            None => Some(max),
+            Some(span) => {
+                let text = self.ast.text(span);
+                match text.parse::<u8>() {
+                    Ok(bits) if bits <= max => Some(bits),
+                    _ => {
+                        let family = if max == 32 { "IPv4" } else { "IPv6" };
+                        self.error(
+                            Diagnostic::new(
+                                span,
+                                format!("prefix length ({text}) is outside of the allowed range (0 - {max})"),
+                            )
+                            .with_note(format!("an {family} address has {max} bits")),
+                        );
+                        None
+                    }
+                }
+            }
+        };
+        Some(IpRange {
+            address: ip?,
+            prefix: prefix?,
+        })
+    }
+}
