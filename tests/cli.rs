@@ -514,3 +514,37 @@ fn endpoints_through_the_binary() {
         assert!(help.contains(line), "{line} missing from\n{help}");
     }
 }
+
+#[test]
+fn the_example_configs_commented_blocks_are_valid() {
+    let src = std::fs::read_to_string(repo("examples/mavtables.conf")).expect("example");
+    let mut blocks = Vec::new();
+    let mut current: Option<String> = None;
+    for line in src.lines() {
+        let body = line.strip_prefix("# ").unwrap_or("");
+        if ["udp {", "tcp {", "serial {", "queue {"].contains(&body) {
+            current = Some(String::new());
+        }
+        if let Some(block) = current.as_mut() {
+            block.push_str(body);
+            block.push('\n');
+            if body == "}" {
+                blocks.extend(current.take());
+            }
+        }
+    }
+    assert_eq!(blocks.len(), 4, "{blocks:?}");
+    assert!(
+        blocks
+            .iter()
+            .any(|b| b.contains("connect 127.0.0.1:14550;"))
+    );
+    for block in blocks {
+        if let Err(e) = mavtables::config::load(&block) {
+            panic!(
+                "{}",
+                mavtables::config::render_errors("example", &block, &e)
+            );
+        }
+    }
+}
