@@ -206,6 +206,14 @@ fn golden_ast_through_the_binary() {
             .expect("golden");
         assert_eq!(text(&out.stdout), want, "{name}");
     }
+    // The network fixture (tcp blocks, clients, IPv6, limits) is valid as a whole.
+    let conf = "tests/data/config/network.conf";
+    let out = run_in(root, &["--check", "--config", conf], &[]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        format!("{conf}: configuration is valid\n")
+    );
 }
 
 #[test]
