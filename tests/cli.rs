@@ -206,6 +206,14 @@ fn golden_ast_through_the_binary() {
             .expect("golden");
         assert_eq!(text(&out.stdout), want, "{name}");
     }
+    // The network fixture (tcp blocks, clients, IPv6, limits) is valid as a whole.
+    let conf = "tests/data/config/network.conf";
+    let out = run_in(root, &["--check", "--config", conf], &[]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        format!("{conf}: configuration is valid\n")
+    );
 }
 
 #[test]
@@ -351,5 +359,200 @@ fn subcommands_read_options_like_the_main_command() {
         let out = run_in(&dir, args, &[]);
         assert_eq!(out.status.code(), Some(1), "{args:?}");
         assert_eq!(text(&out.stderr), format!("error: {want}\n"), "{args:?}");
+    }
+}
+
+/// Runs the command line in-process (program name included) and gives the outcome.
+fn outcome(args: &[&str]) -> (mavtables::cli::Outcome, String, String) {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = args.iter().map(|s| s.to_string()).collect();
+    let o = mavtables::cli::run(args, &mut out, &mut err);
+    (o, text(&out), text(&err))
+}
+
+#[test]
+fn endpoints_are_the_configuration_in_the_order_given() {
+    use mavtables::config::{DefaultAction, Host, Interface, Remote};
+    let (o, out, err) = outcome(&[
+        "mavtables",
+        "serial:/dev/ttyACM0:115200",
+        "udp-client:127.0.0.1:14550",
+        "not-an-endpoint",
+        "udp-server:0.0.0.0:14551",
+        "tcp-server:[::]:5760",
+        "tcp-client:localhost:5761",
+        "udp-client:[::1]:14552",
+        "--loglevel",
+        "2",
+    ]);
+    assert!(out.is_empty() && err.is_empty(), "{out}{err}");
+    let mavtables::cli::Outcome::Run {
+        config,
+        path,
+        options,
+    } = o
+    else {
+        panic!("expected to run")
+    };
+    assert_eq!(path, mavtables::cli::ENDPOINTS_SOURCE);
+    assert_eq!(options.loglevel, 2);
+    assert_eq!(config.default_action, DefaultAction::Accept);
+    assert_eq!(config.chains.len(), 1);
+    assert!(config.chain(config.default_chain).rules.is_empty());
+    let i = &config.interfaces;
+    assert_eq!(i.len(), 6);
+    assert!(
+        matches!(&i[0], Interface::Serial(s) if s.device == "/dev/ttyACM0" && s.baudrate == 115_200)
+    );
+    let remote = |host: &str, port| Remote {
+        host: Host::Ip(host.parse().expect("ip")),
+        port,
+    };
+    assert!(
+        matches!(&i[1], Interface::Udp(u) if u.connect == Some(remote("127.0.0.1", 14550)) && u.port == 0)
+    );
+    assert!(
+        matches!(&i[2], Interface::Udp(u) if u.connect.is_none() && u.port == 14551 && u.address == Some("0.0.0.0".parse().expect("ip")))
+    );
+    assert!(
+        matches!(&i[3], Interface::Tcp(t) if t.connect.is_none() && t.port == 5760 && t.address == Some("::".parse().expect("ip")))
+    );
+    assert!(
+        matches!(&i[4], Interface::Tcp(t) if t.connect == Some(Remote {
+            host: Host::Name("localhost".into()),
+            port: 5761
+        }))
+    );
+    assert!(matches!(&i[5], Interface::Udp(u) if u.connect == Some(remote("::1", 14552))));
+}
+
+#[test]
+fn endpoint_mistakes_and_conflicts() {
+    let err = |args: &[&str]| {
+        let (o, out, err) = outcome(args);
+        assert!(matches!(o, mavtables::cli::Outcome::Exit(1)), "{args:?}");
+        assert!(out.is_empty());
+        err
+    };
+    assert_eq!(
+        err(&["m", "udp-client:nohost"]),
+        "error: endpoint 'udp-client:nohost': expected ':' and a port number after the host; \
+         write udp-client:HOST:PORT, e.g. udp-client:127.0.0.1:14550\n"
+    );
+    assert!(
+        err(&["m", "udp-client:300.1.1.1:5"]).contains("'300.1.1.1' is not a valid IPv4 address")
+    );
+    assert!(
+        err(&["m", "tcp-client:a:0"])
+            .contains("port number (0) is outside of the allowed range (1 - 65535)")
+    );
+    assert!(err(&["m", "udp-client:::1:5"]).contains("(write [::1]:5)"));
+    assert!(err(&["m", "tcp-server:localhost:5760"]).contains("a server listens on an IP address"));
+    assert!(err(&["m", "serial:/dev/ttyACM0"]).contains("write serial:DEVICE:BAUD"));
+    assert_eq!(
+        err(&["m", "--config", "x.conf", "tcp-client:a:1"]),
+        "error: use either --config or endpoints: endpoints are a whole configuration\n"
+    );
+    assert_eq!(
+        err(&["m", "--ast", "tcp-client:a:1"]),
+        "error: --ast prints the syntax tree of a configuration file, and endpoints have no file\n"
+    );
+    assert_eq!(
+        err(&[
+            "m",
+            "udp-server:0.0.0.0:14550",
+            "udp-server:127.0.0.1:14550"
+        ]),
+        "error: endpoint 'udp-server:127.0.0.1:14550' clashes with endpoint \
+         'udp-server:0.0.0.0:14550': both need udp 0.0.0.0:14550\n"
+    );
+    assert!(
+        err(&["m", "serial:/dev/a:9600", "serial:/dev/a:57600"])
+            .contains("both need serial /dev/a")
+    );
+    // TCP and UDP on one port do not clash; neither do two clients.
+    let (o, out, _) = outcome(&[
+        "m",
+        "--check",
+        "udp-server:0.0.0.0:5760",
+        "tcp-server:0.0.0.0:5760",
+        "udp-client:10.0.0.1:1",
+        "udp-client:10.0.0.2:1",
+    ]);
+    assert!(matches!(o, mavtables::cli::Outcome::Exit(0)));
+    assert_eq!(out, "command-line endpoints: configuration is valid\n");
+}
+
+#[test]
+fn endpoints_through_the_binary() {
+    let dir = scratch("endpoints");
+    // A config found by the search does not matter when endpoints are given.
+    std::fs::write(dir.join(".mavtablesrc"), "udp { port 70000; }\n").expect("write");
+    let out = run_in(
+        &dir,
+        &[
+            "--check",
+            "serial:/dev/ttyACM0:115200",
+            "udp-client:[::1]:14550",
+        ],
+        &[],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "command-line endpoints: configuration is valid\n"
+    );
+    // Without endpoints that config is used (and refused); other positionals are ignored.
+    let out = run_in(&dir, &["--check", "ignored", "udp:1.2.3.4:5"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).starts_with("./.mavtablesrc:1:12: port number (70000)"));
+    let out = run_in(&dir, &["udp-client:nohost"], &[]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).starts_with("error: endpoint 'udp-client:nohost': "));
+    let out = run_in(&dir, &["--help"], &[]);
+    let help = text(&out.stdout);
+    for line in [
+        "\n  serial:DEVICE:BAUD ",
+        "\n  udp-server:ADDRESS:PORT ",
+        "\n  udp-client:HOST:PORT ",
+        "\n  tcp-server:ADDRESS:PORT ",
+        "\n  tcp-client:HOST:PORT ",
+        "udp-client:[::1]:14550",
+    ] {
+        assert!(help.contains(line), "{line} missing from\n{help}");
+    }
+}
+
+#[test]
+fn the_example_configs_commented_blocks_are_valid() {
+    let src = std::fs::read_to_string(repo("examples/mavtables.conf")).expect("example");
+    let mut blocks = Vec::new();
+    let mut current: Option<String> = None;
+    for line in src.lines() {
+        let body = line.strip_prefix("# ").unwrap_or("");
+        if ["udp {", "tcp {", "serial {", "queue {"].contains(&body) {
+            current = Some(String::new());
+        }
+        if let Some(block) = current.as_mut() {
+            block.push_str(body);
+            block.push('\n');
+            if body == "}" {
+                blocks.extend(current.take());
+            }
+        }
+    }
+    assert_eq!(blocks.len(), 4, "{blocks:?}");
+    assert!(
+        blocks
+            .iter()
+            .any(|b| b.contains("connect 127.0.0.1:14550;"))
+    );
+    for block in blocks {
+        if let Err(e) = mavtables::config::load(&block) {
+            panic!(
+                "{}",
+                mavtables::config::render_errors("example", &block, &e)
+            );
+        }
     }
 }

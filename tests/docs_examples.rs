@@ -20,3 +20,40 @@ fn worked_examples_are_valid() {
         }
     }
 }
+
+#[test]
+fn the_documented_endpoints_are_the_ones_understood() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs/configuration.md");
+    let section = doc
+        .split("## Endpoints instead of a file")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("endpoints section");
+    for (kind, form, example) in mavtables::cli::endpoints::KINDS {
+        assert!(
+            section.contains(&format!("| `{kind}:{form}` |")),
+            "{kind}:{form} is not documented"
+        );
+        let arg = format!("{kind}:{example}");
+        assert!(
+            matches!(mavtables::cli::endpoints::parse(&arg), Ok(Some(_))),
+            "{arg}"
+        );
+    }
+    // The command line shown first is one the binary accepts.
+    let line = section
+        .lines()
+        .find(|l| l.starts_with("mavtables "))
+        .expect("example command line");
+    let args: Vec<&str> = line.split_whitespace().skip(1).collect();
+    for arg in args {
+        assert!(
+            matches!(mavtables::cli::endpoints::parse(arg), Ok(Some(_))),
+            "{arg}"
+        );
+    }
+}

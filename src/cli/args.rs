@@ -1,8 +1,10 @@
 //! The main command's options, as the original mavtables had them (read by the shared
-//! [`super::arg_reader`] reader): positional arguments are ignored, and `--config` and
-//! `--loglevel` may be given once.
+//! [`super::arg_reader`] reader): `--config` and `--loglevel` may be given once, and
+//! positional arguments are ignored unless they are endpoints (`udp-client:HOST:PORT`,
+//! see [`super::endpoints`]).
 
 use super::arg_reader::{Arg, ArgReader, OptionSpec};
+use super::endpoints::{self, Endpoint};
 
 /// Options understood on the command line.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
@@ -19,6 +21,9 @@ pub struct Options {
     pub config: Option<String>,
     /// Log level 0..=3 given with `--loglevel` (larger values are clamped to 3).
     pub loglevel: u8,
+    /// Endpoints given as positional arguments, in order: when there are any, they are
+    /// the configuration.
+    pub endpoints: Vec<Endpoint>,
 }
 
 /// The original's long options, in the order prefixes are resolved against.
@@ -41,9 +46,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, String>
     let mut loglevel_seen = false;
     let mut reader = ArgReader::new(args, &[ORIGINAL, ADDED]);
     while let Some(arg) = reader.next_arg()? {
-        // Positional arguments are ignored, as the original did.
-        let Arg::Option { name, value } = arg else {
-            continue;
+        // Positional arguments other than endpoints are ignored, as the original did.
+        let (name, value) = match arg {
+            Arg::Option { name, value } => (name, value),
+            Arg::Positional(text) => {
+                opts.endpoints.extend(endpoints::parse(&text)?);
+                continue;
+            }
         };
         match (name, value) {
             ("help", _) => opts.help = true,
@@ -91,6 +100,31 @@ mod tests {
         assert!(p(&["-h"]).unwrap().help);
         assert!(p(&["--ver"]).unwrap().version);
         assert_eq!(p(&["--config=b"]).unwrap().config.as_deref(), Some("b"));
+        assert!(
+            p(&["ignored", "udp:1.2.3.4:5"])
+                .unwrap()
+                .endpoints
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn endpoints_are_kept_in_order() {
+        let o = p(&[
+            "tcp-server:0.0.0.0:5760",
+            "x",
+            "--ast",
+            "udp-client:[::1]:14550",
+        ])
+        .unwrap();
+        let texts: Vec<&str> = o.endpoints.iter().map(|e| e.text.as_str()).collect();
+        assert_eq!(texts, ["tcp-server:0.0.0.0:5760", "udp-client:[::1]:14550"]);
+        assert!(o.ast);
+        assert!(
+            p(&["udp-client:nohost"])
+                .unwrap_err()
+                .starts_with("endpoint 'udp-client:nohost': ")
+        );
     }
 
     #[test]

@@ -12,14 +12,17 @@ pub enum Outcome {
     Exit(u8),
     /// Run the router with this valid configuration.
     Run {
-        /// The loaded configuration.
+        /// The loaded configuration (or the one the endpoints stand for).
         config: Config,
-        /// Where it was read from.
+        /// Where it was read from ([`ENDPOINTS_SOURCE`] for endpoints).
         path: String,
         /// The command-line options.
         options: Options,
     },
 }
+
+/// What [`Outcome::Run`] names as the configuration's source when endpoints gave it.
+pub const ENDPOINTS_SOURCE: &str = "command-line endpoints";
 
 /// Handles the command line (`args` includes the program name). Messages go to `out` and
 /// `err`; the environment and filesystem are read for the configuration search.
@@ -43,6 +46,9 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     if options.version {
         let _ = out.write_all(version().as_bytes());
         return Outcome::Exit(0);
+    }
+    if !options.endpoints.is_empty() {
+        return run_endpoints(options, out, err);
     }
     let found = find_config(
         options.config.as_deref(),
@@ -90,6 +96,36 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     Outcome::Run {
         config: loaded.config,
         path,
+        options,
+    }
+}
+
+/// Endpoints are the whole configuration: no file is looked for, and one named with
+/// `--config` would be ambiguous.
+fn run_endpoints(options: Options, out: &mut dyn Write, err: &mut dyn Write) -> Outcome {
+    if options.config.is_some() {
+        return fail(
+            err,
+            "use either --config or endpoints: endpoints are a whole configuration",
+        );
+    }
+    if options.ast {
+        return fail(
+            err,
+            "--ast prints the syntax tree of a configuration file, and endpoints have no file",
+        );
+    }
+    let config = match super::endpoints::config(&options.endpoints) {
+        Ok(c) => c,
+        Err(e) => return fail(err, &e),
+    };
+    if options.check {
+        let _ = writeln!(out, "{ENDPOINTS_SOURCE}: configuration is valid");
+        return Outcome::Exit(0);
+    }
+    Outcome::Run {
+        config,
+        path: ENDPOINTS_SOURCE.to_string(),
         options,
     }
 }

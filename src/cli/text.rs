@@ -1,8 +1,13 @@
 //! The fixed texts of `--help` and `--version`.
 
 /// The `--help` text: the original's option list (the first line names the program as it
-/// was invoked), then the subcommands and how to get their own help.
+/// was invoked), then the endpoints, the subcommands and how to get their own help.
 pub fn help(argv0: &str) -> String {
+    let mut endpoints = String::new();
+    for (kind, form, example) in super::endpoints::KINDS {
+        let usage = format!("{kind}:{form}");
+        endpoints += &format!("  {usage:<26}e.g. {kind}:{example}\n");
+    }
     format!(
         "usage: {argv0}:\n\
          \x20 -h [ --help ]         show this help and exit\n\
@@ -11,6 +16,10 @@ pub fn help(argv0: &str) -> String {
          \x20 --check               check the configuration (syntax and meaning) and exit\n\
          \x20 --version             show version and license and exit\n\
          \x20 --loglevel arg        how much to log, from 0 (nothing) to 3 (every packet)\n\
+         \n\
+         endpoints (instead of a configuration file: every packet is forwarded between them):\n\
+         {endpoints}\
+         \x20 IPv6 addresses go in brackets: udp-client:[::1]:14550\n\
          \n\
          subcommands ('mavtables SUBCOMMAND --help' shows a subcommand's options):\n\
          \x20 inspect FILE...       list, decode, summarise or check the frames of captures\n\

@@ -142,7 +142,7 @@ pub struct TcpInterface {
     /// Server: address to listen on; client: address to connect from. `None` = every
     /// address (0.0.0.0, or :: for an IPv6 peer).
     pub address: Option<IpAddr>,
-    /// Transmit limit per link in bits per second; `None` means no limit.
+    /// Transmit limit in bits per second; `None` (also for `max_bitrate 0`) means no limit.
     pub max_bitrate: Option<u64>,
     /// `Some` makes the block a client of this remote.
     pub connect: Option<Remote>,
