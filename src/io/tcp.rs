@@ -58,8 +58,12 @@ impl TcpListenerDriver {
     pub fn bind(config: &TcpInterface, interface: InterfaceId) -> io::Result<Self> {
         let local = SocketAddr::new(config.local_address(), config.port);
         let named = |e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", label(config)));
-        let socket = Socket::new(Domain::for_address(local), Type::STREAM, Some(Protocol::TCP))
-            .map_err(named)?;
+        let socket = Socket::new(
+            Domain::for_address(local),
+            Type::STREAM,
+            Some(Protocol::TCP),
+        )
+        .map_err(named)?;
         if local.is_ipv6() && local.ip().is_unspecified() {
             let _ = socket.set_only_v6(false);
         }

@@ -817,7 +817,10 @@ impl Engine {
                 remotes.iter().all(|(l, _)| self.router.peek(l).is_none())
             }
             Kind::Stream { .. } | Kind::DatagramClient { .. } => {
-                !interface.is_open() || interface.own_link().is_none_or(|l| self.router.peek(l).is_none())
+                !interface.is_open()
+                    || interface
+                        .own_link()
+                        .is_none_or(|l| self.router.peek(l).is_none())
             }
             Kind::Listener { .. } => true,
         }
@@ -844,4 +847,3 @@ impl Engine {
         text
     }
 }
-

@@ -308,14 +308,16 @@ fn udp_ports(config: &str) -> Vec<u16> {
     ports
 }
 
-/// True if some UDP socket is bound to `port` (from /proc/net/udp).
+/// True if some UDP socket, IPv4 or IPv6, is bound to `port` (from /proc/net/udp{,6}).
 pub fn udp_port_bound(port: u16) -> bool {
-    let table = std::fs::read_to_string("/proc/net/udp").unwrap_or_default();
     let wanted = format!(":{port:04X}");
-    table.lines().skip(1).any(|l| {
-        l.split_whitespace()
-            .nth(1)
-            .is_some_and(|local| local.ends_with(&wanted))
+    ["/proc/net/udp", "/proc/net/udp6"].iter().any(|file| {
+        let table = std::fs::read_to_string(file).unwrap_or_default();
+        table.lines().skip(1).any(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .is_some_and(|local| local.ends_with(&wanted))
+        })
     })
 }
 
