@@ -97,3 +97,81 @@ fn mavproxy_and_vehicle_on_one_udp_server() {
     );
     eprintln!("session took {:?}", session.took);
 }
+
+fn free_tcp_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port()
+}
+
+/// The vehicle on serial, MAVProxy a TCP client of the router's TCP server: the
+/// accepted connection is a link of its own.
+#[test]
+fn mavproxy_as_tcp_client_of_a_tcp_server() {
+    let s = Scratch::new("mavproxy-tcp-server");
+    let dev = s.path("vehicle");
+    let port = free_tcp_port();
+    let config = format!(
+        "serial {{ device {dev}; baudrate 115200; }}\n\
+         tcp {{ port {port}; address 127.0.0.1; }}\n\
+         default_action accept;\n"
+    );
+    let session = ground_station_session(
+        &s,
+        &config,
+        &format!("tcp:127.0.0.1:{port}"),
+        VehicleLink::Serial(dev),
+    );
+    assert!(
+        session
+            .router
+            .stdout
+            .iter()
+            .any(|l| l.contains("new component 255.") && l.contains(" on tcp:127.0.0.1:")),
+        "{:#?}",
+        session.router.stdout
+    );
+}
+
+/// The vehicle on serial, MAVProxy listening for TCP (`tcpin`) and the router its TCP
+/// client, connecting at start.
+#[test]
+fn mavproxy_as_tcp_server_for_a_tcp_client() {
+    let s = Scratch::new("mavproxy-tcp-client");
+    let dev = s.path("vehicle");
+    let port = free_tcp_port();
+    let config = format!(
+        "serial {{ device {dev}; baudrate 115200; }}\n\
+         tcp {{ connect 127.0.0.1:{port}; }}\n\
+         default_action accept;\n"
+    );
+    let session = ground_station_session(
+        &s,
+        &config,
+        &format!("tcpin:127.0.0.1:{port}"),
+        VehicleLink::Serial(dev),
+    );
+    eprintln!("session took {:?}", session.took);
+}
+
+/// The vehicle on serial, MAVProxy listening on UDP (`udpin`), never speaking first
+/// until it hears the vehicle: the router's `udp { connect …; }` sends from the start.
+#[test]
+fn mavproxy_as_udp_server_for_a_udp_client() {
+    let s = Scratch::new("mavproxy-connect");
+    let dev = s.path("vehicle");
+    let port = free_udp_port();
+    let config = format!(
+        "serial {{ device {dev}; baudrate 115200; }}\n\
+         udp {{ connect 127.0.0.1:{port}; }}\n\
+         default_action accept;\n"
+    );
+    let session = ground_station_session(
+        &s,
+        &config,
+        &format!("udpin:127.0.0.1:{port}"),
+        VehicleLink::Serial(dev),
+    );
+    eprintln!("session took {:?}", session.took);
+}
