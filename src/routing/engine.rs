@@ -33,7 +33,7 @@ use super::admission;
 use super::counters::InterfaceReport;
 use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
-use super::interface::{Interface, InterfaceId, Kind, Reopen};
+use super::interface::{Interface, InterfaceId, Kind};
 use super::link::LinkId;
 use super::pacer::Pace;
 use super::queue::Packet;
@@ -145,10 +145,8 @@ impl Engine {
         max_bitrate: u64,
         limits: PeerLimits,
     ) -> InterfaceId {
-        self.push_interface(Interface::new(
-            label.clone(),
+        self.push_interface(Interface::network(
             label,
-            StaleTail::new(None),
             max_bitrate,
             Kind::Datagram {
                 remotes: Remotes::default(),
@@ -169,10 +167,8 @@ impl Engine {
         now: Timestamp,
     ) -> InterfaceId {
         let link = self.router.add_client_link(link_name, now);
-        self.push_interface(Interface::new(
-            label.clone(),
+        self.push_interface(Interface::network(
             label,
-            StaleTail::new(None),
             max_bitrate,
             Kind::DatagramClient {
                 link,
@@ -215,16 +211,7 @@ impl Engine {
             format!("serial device {device}"),
             StaleTail::new(baudrate),
             max_bitrate,
-            Kind::Stream {
-                link,
-                connection: Connection::new(now),
-                accepted_by: None,
-                reopen: Reopen {
-                    first_wait: FIRST_BACKOFF,
-                    forget_after: None,
-                    down_since: None,
-                },
-            },
+            Kind::stream(link, Connection::new(now), None, FIRST_BACKOFF, None),
         ))
     }
 
@@ -240,31 +227,24 @@ impl Engine {
         now: Timestamp,
     ) -> InterfaceId {
         let link = self.router.add_client_link(link_name, now);
-        self.push_interface(Interface::new(
-            label.clone(),
+        self.push_interface(Interface::network(
             label,
-            StaleTail::new(None),
             max_bitrate,
-            Kind::Stream {
+            Kind::stream(
                 link,
-                connection: Connection::new(now),
-                accepted_by: None,
-                reopen: Reopen {
-                    first_wait: Duration::ZERO,
-                    forget_after: Some(FORGET_AFTER),
-                    down_since: None,
-                },
-            },
+                Connection::new(now),
+                None,
+                Duration::ZERO,
+                Some(FORGET_AFTER),
+            ),
         ))
     }
 
     /// Adds a stream server (a TCP listener) named `label`, taking connections within
     /// `limits` ([`Engine::accept`]); each sends at most `max_bitrate` bit/s.
     pub fn add_listener(&mut self, label: String, limits: PeerLimits) -> InterfaceId {
-        self.push_interface(Interface::new(
-            label.clone(),
+        self.push_interface(Interface::network(
             label,
-            StaleTail::new(None),
             0,
             Kind::Listener {
                 limits,
@@ -305,21 +285,10 @@ impl Engine {
             id: link,
             name: name.clone(),
         });
-        Some(self.push_interface(Interface::new(
-            name.clone(),
+        Some(self.push_interface(Interface::network(
             name,
-            StaleTail::new(None),
             max_bitrate,
-            Kind::Stream {
-                link,
-                connection: Connection::Open,
-                accepted_by: Some(listener),
-                reopen: Reopen {
-                    first_wait: Duration::ZERO,
-                    forget_after: None,
-                    down_since: None,
-                },
-            },
+            Kind::stream(link, Connection::Open, Some(listener), Duration::ZERO, None),
         )))
     }
 

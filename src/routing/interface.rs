@@ -83,6 +83,30 @@ pub enum Kind {
     },
 }
 
+impl Kind {
+    /// A stream that is `link`, in state `connection`, accepted by `accepted_by` (if
+    /// any), waiting `first_wait` after a loss and forgetting its queue after
+    /// `forget_after` down.
+    pub fn stream(
+        link: LinkId,
+        connection: Connection,
+        accepted_by: Option<InterfaceId>,
+        first_wait: std::time::Duration,
+        forget_after: Option<std::time::Duration>,
+    ) -> Self {
+        Kind::Stream {
+            link,
+            connection,
+            accepted_by,
+            reopen: Reopen {
+                first_wait,
+                forget_after,
+                down_since: None,
+            },
+        }
+    }
+}
+
 /// How a stream comes back after it was lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Reopen {
@@ -137,6 +161,12 @@ impl Interface {
             refused: Refused::default(),
             kind,
         }
+    }
+
+    /// A network interface (no line rate: held-back bytes wait the plain quiet gap)
+    /// named `label` in messages and counters alike.
+    pub fn network(label: String, rate: u64, kind: Kind) -> Self {
+        Interface::new(label.clone(), label, StaleTail::new(None), rate, kind)
     }
 
     /// The connection state of an interface that opens (streams, datagram clients).
