@@ -293,3 +293,36 @@ fn a_tcp_port_in_use_stops_the_start_naming_the_block() {
     assert!(err.contains(&format!("tcp 127.0.0.1:{port}: ")), "{err}");
     assert!(err.contains("in use"), "{err}");
 }
+
+/// A client whose host name does not resolve stops nothing: the other links route, and
+/// the router says it keeps trying (the look-up runs off the loop).
+#[test]
+fn a_client_name_that_does_not_resolve_stops_nothing() {
+    let s = Scratch::new("unresolved");
+    let port = free_udp_port();
+    let config = format!(
+        "udp {{ port {port}; address 127.0.0.1; }}\n\
+         tcp {{ connect no-such-host.invalid:5760; }}\n\
+         udp {{ connect no-such-host.invalid:14550; }}\n{ACCEPT_ALL}"
+    );
+    let mut router = Router::start(&s, &config, 1);
+    let (a, b) = (
+        UdpSocket::bind("127.0.0.1:0").expect("bind"),
+        UdpSocket::bind("127.0.0.1:0").expect("bind"),
+    );
+    let to = format!("127.0.0.1:{port}");
+    b.send_to(&heartbeat(20), &to).expect("send");
+    router.wait_for("new component 20.1 on 127.0.0.1:");
+    a.send_to(&attitude(10, 3), &to).expect("send");
+    let at_b = udp_frames(&b, 1, 5 * SECOND);
+    assert_eq!(at_b, [attitude(10, 3)]);
+    router.err.wait_for(
+        "cannot open tcp connect no-such-host.invalid:5760",
+        10 * SECOND,
+    );
+    router.err.wait_for(
+        "cannot open udp connect no-such-host.invalid:14550",
+        10 * SECOND,
+    );
+    router.stop();
+}

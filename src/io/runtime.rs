@@ -9,10 +9,11 @@
 
 use std::io;
 use std::os::fd::{AsRawFd, RawFd};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use mio::unix::SourceFd;
-use mio::{Events, Interest, Poll, Token};
+use mio::{Events, Interest, Poll, Token, Waker};
 use signal_hook::consts::{SIGINT, SIGTERM, SIGUSR1};
 use signal_hook_mio::v1_0::Signals;
 use slab::Slab;
@@ -31,6 +32,8 @@ use crate::routing::{Engine, InterfaceId, Notice, RouterOptions, Timestamp};
 const SIGNALS: Token = Token(usize::MAX - 1);
 /// Token of the timer.
 const TIMER: Token = Token(usize::MAX - 2);
+/// Token of the waker that look-ups of host names ring when they have an answer.
+const WAKER: Token = Token(usize::MAX - 3);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
 /// How long the log output may take to drain at exit.
@@ -167,7 +170,9 @@ impl Runtime {
                 continue;
             }
             let blocked = progress == Progress::Blocked;
-            if blocked != slot.watching_writes && slot.registered.is_some() {
+            // A client that has just resolved its remote has a descriptor to watch.
+            let fd_changed = slot.driver.fd() != slot.registered;
+            if fd_changed || (blocked != slot.watching_writes && slot.registered.is_some()) {
                 slot.watching_writes = blocked;
                 self.watch(key);
             }
@@ -265,6 +270,8 @@ impl Runtime {
                             }
                         }
                     }
+                    // A look-up has its answer; the drivers' flush takes it below.
+                    WAKER => {}
                     TIMER => {
                         self.timer.acknowledge();
                         // Fired: whatever is due next is armed afresh.
@@ -351,6 +358,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     let mut engine = Engine::new(config, options(config, loglevel));
     let logger = Logger::new(loglevel);
     let start = Instant::now();
+    let waker = Arc::new(Waker::new(poll.registry(), WAKER)?);
     let mut drivers: Vec<Box<dyn Driver>> = Vec::new();
     // Serial links first, in file order (the original's link order), with preloads.
     for iface in &config.interfaces {
@@ -380,7 +388,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                         Timestamp::ZERO,
                     ),
                 };
-                drivers.push(Box::new(UdpDriver::new(u, id)?));
+                drivers.push(Box::new(UdpDriver::new(u, id, waker.clone())?));
             }
             Interface::Tcp(t) => {
                 let label = tcp::label(t);
@@ -393,7 +401,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                     Some(remote) => {
                         let name = format!("tcp:{remote}");
                         let id = engine.add_stream_client(label, &name, rate, Timestamp::ZERO);
-                        drivers.push(Box::new(TcpStreamDriver::client(remote, id)));
+                        drivers.push(Box::new(TcpStreamDriver::client(remote, id, waker.clone())));
                     }
                 }
             }

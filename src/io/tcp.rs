@@ -11,8 +11,12 @@ use std::time::Duration;
 
 use socket2::{Domain, Protocol, Socket, TcpKeepalive, Type};
 
+use std::sync::Arc;
+
+use mio::Waker;
+
 use super::driver::{Driver, Progress};
-use super::resolve::resolve;
+use super::resolve::Lookup;
 use super::stream::StreamIo;
 use crate::config::{Remote, TcpInterface};
 use crate::routing::{Engine, InterfaceId, Timestamp};
@@ -109,7 +113,7 @@ impl Driver for TcpListenerDriver {
                         self.accepted.push(Box::new(TcpStreamDriver {
                             interface: id,
                             stream: Some(stream),
-                            remote: None,
+                            client: None,
                             connecting: false,
                             io: StreamIo::default(),
                         }));
@@ -142,32 +146,45 @@ impl Driver for TcpListenerDriver {
     }
 }
 
+/// What a client knows of where it connects.
+struct Client {
+    remote: Remote,
+    /// Wakes the loop when a look-up has its answer.
+    waker: Arc<Waker>,
+    /// The look-up of `remote`, while under way.
+    lookup: Option<Lookup>,
+}
+
 /// One TCP connection: accepted by a server, or a client's.
 pub struct TcpStreamDriver {
     interface: InterfaceId,
     stream: Option<TcpStream>,
     /// A client's remote (None for an accepted connection).
-    remote: Option<Remote>,
-    /// A client's connection is being made.
+    client: Option<Client>,
+    /// A client's connection is being made (its remote looked up, or connected to).
     connecting: bool,
     io: StreamIo,
 }
 
 impl TcpStreamDriver {
     /// A client of `remote`, connected when the core asks.
-    pub fn client(remote: &Remote, interface: InterfaceId) -> Self {
+    pub fn client(remote: &Remote, interface: InterfaceId, waker: Arc<Waker>) -> Self {
         TcpStreamDriver {
             interface,
             stream: None,
-            remote: Some(remote.clone()),
+            client: Some(Client {
+                remote: remote.clone(),
+                waker,
+                lookup: None,
+            }),
             connecting: false,
             io: StreamIo::default(),
         }
     }
 
-    /// Starts connecting to `remote` without waiting.
-    fn connect(remote: &Remote) -> io::Result<(TcpStream, bool)> {
-        let to = resolve(remote)?;
+    /// Starts connecting to `to` without waiting: the stream, and whether it is
+    /// connected already.
+    fn connect(to: SocketAddr) -> io::Result<(TcpStream, bool)> {
         let socket = Socket::new(Domain::for_address(to), Type::STREAM, Some(Protocol::TCP))?;
         socket.set_nonblocking(true)?;
         let done = match socket.connect(&to.into()) {
@@ -183,6 +200,28 @@ impl TcpStreamDriver {
     /// A connection being made: Some(true) once made, Some(false) while under way,
     /// None if it failed (reported to the core).
     fn check_connected(&mut self, engine: &mut Engine, now: Timestamp) -> Option<bool> {
+        if let Some(client) = &mut self.client
+            && let Some(lookup) = client.lookup.take()
+        {
+            match lookup.poll() {
+                Err(pending) => {
+                    client.lookup = Some(pending);
+                    return Some(false);
+                }
+                Ok(answer) => match answer.and_then(Self::connect) {
+                    Ok((stream, done)) => {
+                        self.stream = Some(stream);
+                        if !done {
+                            return Some(false);
+                        }
+                    }
+                    Err(e) => {
+                        engine.stream_open_failed(self.interface, now, &e);
+                        return None;
+                    }
+                },
+            }
+        }
         let stream = self.stream.as_ref()?;
         if let Ok(Some(e)) | Err(e) = stream.take_error() {
             engine.stream_open_failed(self.interface, now, &e);
@@ -213,18 +252,31 @@ impl Driver for TcpStreamDriver {
     }
 
     fn open(&mut self, _engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
-        let Some(remote) = &self.remote else {
+        let Some(client) = &mut self.client else {
             return Ok(true);
         };
-        let (stream, done) = Self::connect(remote)?;
-        self.stream = Some(stream);
-        self.connecting = !done;
-        Ok(done)
+        match Lookup::start(&client.remote, &client.waker).poll() {
+            Ok(to) => {
+                let (stream, done) = Self::connect(to?)?;
+                self.stream = Some(stream);
+                self.connecting = !done;
+                Ok(done)
+            }
+            Err(pending) => {
+                // Connected once the name resolves (see `flush`).
+                client.lookup = Some(pending);
+                self.connecting = true;
+                Ok(false)
+            }
+        }
     }
 
     fn close(&mut self) {
         self.stream = None;
         self.connecting = false;
+        if let Some(client) = &mut self.client {
+            client.lookup = None;
+        }
         self.io.clear();
     }
 

@@ -10,11 +10,15 @@ use std::os::fd::{AsRawFd, RawFd};
 
 use socket2::{Domain, Protocol, Socket, Type};
 
+use std::sync::Arc;
+
+use mio::Waker;
+
 use super::driver::{Driver, Progress};
 use super::log;
-use super::resolve::resolve;
+use super::resolve::Lookup;
 use super::sys::{self, MAX_BATCH, RecvBatch, SendBatch};
-use crate::config::{Remote, UdpInterface};
+use crate::config::UdpInterface;
 use crate::routing::{Engine, InterfaceId, Timestamp, Transmit};
 
 /// Socket buffer sizes asked for, so bursts are not dropped by the kernel.
@@ -82,6 +86,10 @@ pub struct UdpDriver {
     /// [`sys::send_batch`]): on when the kernel offers it, off for good once a send
     /// with GSO is refused.
     gso: bool,
+    /// Wakes the loop when a client's look-up has its answer.
+    waker: Arc<Waker>,
+    /// A client's look-up of its remote, while under way.
+    lookup: Option<Lookup>,
 }
 
 impl UdpDriver {
@@ -99,7 +107,11 @@ impl UdpDriver {
 
     /// Binds a server's socket at once (a port in use stops the start, naming the
     /// block); a client's is bound when the core asks it to open.
-    pub fn new(config: &UdpInterface, interface: InterfaceId) -> io::Result<Self> {
+    pub fn new(
+        config: &UdpInterface,
+        interface: InterfaceId,
+        waker: Arc<Waker>,
+    ) -> io::Result<Self> {
         let label = Self::label(config);
         let mut driver = UdpDriver {
             interface,
@@ -111,6 +123,8 @@ impl UdpDriver {
             send_scratch: SendBatch::new(),
             in_flight: VecDeque::new(),
             gso: false,
+            waker,
+            lookup: None,
         };
         if config.connect.is_none() {
             let local = SocketAddr::new(config.local_address(), config.port);
@@ -127,9 +141,9 @@ impl UdpDriver {
         self.socket = Some(socket);
     }
 
-    /// A client's socket, bound for `remote`, and where its datagrams go.
-    fn connect(&self, remote: &Remote) -> io::Result<(UdpSocket, SocketAddr)> {
-        let target = resolve(remote)?;
+    /// Binds a client's socket for sending to `target` and tells the core where its
+    /// datagrams go.
+    fn bind_for(&mut self, target: SocketAddr, engine: &mut Engine) -> io::Result<()> {
         let local_ip = self.config.address.unwrap_or(match target {
             SocketAddr::V4(_) => IpAddr::from([0u8; 4]),
             SocketAddr::V6(_) => IpAddr::from([0u16; 8]),
@@ -139,7 +153,34 @@ impl UdpDriver {
             // A broadcast address needs it; any other target does not mind it.
             socket.set_broadcast(true)?;
         }
-        Ok((socket, target))
+        self.adopt(socket);
+        engine.set_target(self.interface, target);
+        Ok(())
+    }
+
+    /// A client whose look-up is under way: binds once it has the answer (then `Ok`),
+    /// or reports a failure to the core (then `Err`, the driver is lost).
+    fn finish_lookup(&mut self, engine: &mut Engine, now: Timestamp) -> Result<(), ()> {
+        let Some(lookup) = self.lookup.take() else {
+            return Ok(());
+        };
+        let target = match lookup.poll() {
+            Err(pending) => {
+                self.lookup = Some(pending);
+                return Ok(());
+            }
+            Ok(answer) => answer,
+        };
+        match target.and_then(|t| self.bind_for(t, engine)) {
+            Ok(()) => {
+                engine.stream_opened(self.interface, now);
+                Ok(())
+            }
+            Err(e) => {
+                engine.stream_open_failed(self.interface, now, &e);
+                Err(())
+            }
+        }
     }
 
     /// The bound address.
@@ -162,18 +203,26 @@ impl Driver for UdpDriver {
     }
 
     fn open(&mut self, engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
-        let Some(remote) = self.config.connect.clone() else {
+        let Some(remote) = &self.config.connect else {
             return Ok(true);
         };
-        let (socket, target) = self.connect(&remote)?;
-        self.adopt(socket);
-        engine.set_target(self.interface, target);
-        Ok(true)
+        match Lookup::start(remote, &self.waker).poll() {
+            Ok(target) => {
+                self.bind_for(target?, engine)?;
+                Ok(true)
+            }
+            Err(pending) => {
+                // Bound, and the core told, once the name resolves (see `flush`).
+                self.lookup = Some(pending);
+                Ok(false)
+            }
+        }
     }
 
     fn close(&mut self) {
         if self.config.connect.is_some() {
             self.socket = None;
+            self.lookup = None;
             self.in_flight.clear();
         }
     }
@@ -209,6 +258,9 @@ impl Driver for UdpDriver {
     }
 
     fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        if self.finish_lookup(engine, now).is_err() {
+            return Progress::Lost;
+        }
         let Some(socket) = &self.socket else {
             return Progress::Done;
         };
@@ -307,7 +359,9 @@ mod tests {
         };
         let mut engine = Engine::new(&loaded.config, RouterOptions::default());
         let id = engine.add_datagram_interface("udp test".into(), 0, Default::default());
-        let mut driver = UdpDriver::new(iface, id).expect("bind");
+        let poll = mio::Poll::new().expect("poll");
+        let waker = Arc::new(Waker::new(poll.registry(), mio::Token(0)).expect("waker"));
+        let mut driver = UdpDriver::new(iface, id, waker).expect("bind");
         let to = driver.local_addr().expect("addr");
         let (listener, sender) = (
             UdpSocket::bind("127.0.0.1:0").expect("bind"),
