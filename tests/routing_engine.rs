@@ -319,3 +319,148 @@ fn the_counters_report_every_link_and_interface() {
         "{report}"
     );
 }
+
+fn limits(max_peers: usize, allow: &[&str]) -> mavtables::config::PeerLimits {
+    mavtables::config::PeerLimits {
+        max_peers,
+        allow: allow
+            .iter()
+            .map(|r| {
+                let (ip, bits) = r.split_once('/').expect("a/n");
+                mavtables::config::IpRange {
+                    address: ip.parse().expect("ip"),
+                    prefix: bits.parse().expect("bits"),
+                }
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn accepted_connections_are_links_until_they_close_within_the_servers_limits() {
+    let mut e = engine(ACCEPT);
+    let server = e.add_listener("tcp test".into(), limits(2, &["127.0.0.0/8"]));
+    let now = Timestamp::ZERO;
+    let a = e.accept(server, peer(1), 0, now).expect("first");
+    let b = e.accept(server, peer(2), 0, now).expect("second");
+    assert!(e.accept(server, peer(3), 0, now).is_none(), "max_peers 2");
+    let outside = SocketAddr::from(([10, 0, 0, 1], 9));
+    assert!(e.accept(server, outside, 0, now).is_none(), "not allowed");
+    let said = notices(&mut e);
+    let names: Vec<&str> = said
+        .iter()
+        .filter_map(|n| match n {
+            Notice::LinkAdded { name, .. } => Some(name.as_str()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(names, ["tcp:127.0.0.1:1", "tcp:127.0.0.1:2"]);
+    assert_eq!(
+        said.iter()
+            .filter(|n| matches!(n, Notice::Warning(_)))
+            .count(),
+        2,
+        "each refusal reason said once: {said:?}"
+    );
+    // A frame of A cut in two reaches B (heartbeats only teach addresses here).
+    e.handle_stream(a, &frame("HEARTBEAT", "7.1", None), now);
+    e.handle_stream(b, &frame("HEARTBEAT", "8.1", None), now);
+    let att = frame("ATTITUDE", "7.1", None);
+    e.handle_stream(a, &att[..5], now);
+    e.handle_stream(a, &att[5..], now);
+    let mut queue = VecDeque::new();
+    e.poll_transmit(b, now, 10, &mut queue);
+    let at_b: Vec<Vec<u8>> = queue.drain(..).map(|t| t.packet.to_vec()).collect();
+    assert_eq!(at_b, [att]);
+    // A closes: its interface and link go; a new connection fits again.
+    notices(&mut e);
+    e.stream_lost(a, now, &"end of stream");
+    let gone = notices(&mut e);
+    assert!(gone.contains(&Notice::Closed(a)), "{gone:?}");
+    assert!(
+        gone.iter()
+            .any(|n| matches!(n, Notice::LinkRemoved { name, .. } if name == "tcp:127.0.0.1:1"))
+    );
+    assert_eq!(e.router().links().count(), 1);
+    assert!(e.accept(server, peer(4), 0, now).is_some());
+    // The closed connection's frames are still counted, on the server's line.
+    assert!(
+        e.report().contains("  tcp test: 2 frames,"),
+        "{}",
+        e.report()
+    );
+}
+
+#[test]
+fn a_tcp_client_reconnects_at_once_and_forgets_what_went_stale() {
+    let mut e = engine(ACCEPT);
+    let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+    let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    assert!(notices(&mut e).contains(&Notice::Open(client)));
+    e.stream_opened(client, Timestamp::ZERO);
+    let send = |e: &mut Engine, at: Timestamp| {
+        e.handle_datagram(udp, peer(1), &frame("ATTITUDE", "7.1", None), at);
+    };
+    let queued = |e: &mut Engine, at: Timestamp| {
+        let mut q = VecDeque::new();
+        e.poll_transmit(client, at, 100, &mut q);
+        q.len()
+    };
+    // Before it learned any address, the client's link takes broadcasts.
+    send(&mut e, Timestamp::ZERO);
+    assert_eq!(queued(&mut e, Timestamp::ZERO), 1);
+    // Lost: tried again at once; what arrives meanwhile waits, and a short outage keeps it.
+    let t = Timestamp::from_secs(5);
+    e.stream_lost(client, t, &"reset");
+    e.handle_timeout(t);
+    assert!(notices(&mut e).contains(&Notice::Open(client)));
+    send(&mut e, t);
+    e.stream_opened(client, t + Duration::from_secs(1));
+    assert_eq!(queued(&mut e, t + Duration::from_secs(1)), 1);
+    // A long outage: what was queued is stale and dropped when it comes back.
+    let t = Timestamp::from_secs(10);
+    e.stream_lost(client, t, &"reset");
+    send(&mut e, t);
+    e.stream_opened(client, t + Duration::from_secs(3));
+    assert_eq!(queued(&mut e, t + Duration::from_secs(3)), 0);
+}
+
+#[test]
+fn a_udp_client_holds_its_packets_until_it_knows_where_to_send() {
+    let mut e = engine(ACCEPT);
+    let server = e.add_datagram_interface("udp server".into(), 0, Default::default());
+    let client = e.add_datagram_client("udp connect gcs".into(), "gcs:14550", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    e.stream_opened(client, Timestamp::ZERO);
+    e.handle_datagram(
+        server,
+        peer(1),
+        &frame("ATTITUDE", "1.1", None),
+        Timestamp::ZERO,
+    );
+    let mut q = VecDeque::new();
+    e.poll_transmit(client, Timestamp::ZERO, 10, &mut q);
+    assert!(q.is_empty(), "no target yet");
+    let gcs = SocketAddr::from(([192, 168, 1, 255], 14550));
+    e.set_target(client, gcs);
+    e.poll_transmit(client, Timestamp::ZERO, 10, &mut q);
+    assert_eq!(q.len(), 1);
+    assert_eq!(q[0].to, Some(gcs));
+    // Whatever comes back, from any station, is that one link's.
+    e.handle_datagram(
+        client,
+        SocketAddr::from(([192, 168, 1, 7], 14550)),
+        &frame("HEARTBEAT", "255.190", None),
+        Timestamp::ZERO,
+    );
+    e.handle_datagram(
+        client,
+        SocketAddr::from(([192, 168, 1, 8], 14550)),
+        &frame("HEARTBEAT", "255.191", None),
+        Timestamp::ZERO,
+    );
+    let link = e.stream_link(client).expect("a link");
+    let pool = e.router().link(link).expect("link").pool().clone();
+    assert_eq!(pool.addresses(Timestamp::ZERO).count(), 2);
+}
