@@ -40,6 +40,13 @@ fuzz_target!(|data: &[u8]| {
     let mut now = Timestamp::ZERO;
     let serial = e.add_stream_interface("serial", &[Address::new(1, 1)], Some(57_600), 0, now);
     let udp = e.add_datagram_interface("udp".into(), 64_000, Default::default());
+    let limits = mavtables::config::PeerLimits {
+        max_peers: 3,
+        allow: Vec::new(),
+    };
+    let listener = e.add_listener("tcp".into(), limits);
+    let client = e.add_datagram_client("udp client".into(), "gcs", 0, now);
+    let mut accepted: Vec<mavtables::routing::InterfaceId> = Vec::new();
     let peers: [SocketAddr; 3] = [1, 2, 3].map(|p| SocketAddr::from(([127, 0, 0, 1], p)));
     let mut queue = VecDeque::new();
     let mut rest = data;
@@ -51,7 +58,7 @@ fuzz_target!(|data: &[u8]| {
     };
     while let Some(&op) = take(1).first() {
         let arg = take(1).first().copied().unwrap_or(0);
-        match op % 7 {
+        match op % 10 {
             0 => {
                 let chunk = take(usize::from(arg));
                 e.handle_datagram(udp, peers[usize::from(op >> 3) % 3], chunk, now);
@@ -71,7 +78,7 @@ fuzz_target!(|data: &[u8]| {
                     encode_v2(header, id, payload, None, &mut frame)
                 };
                 if built.is_ok() {
-                    if op % 7 == 1 {
+                    if op % 10 == 1 {
                         e.handle_datagram(udp, peers[usize::from(op >> 3) % 3], &frame, now);
                     } else {
                         e.handle_stream(serial, &frame, now);
@@ -101,10 +108,38 @@ fuzz_target!(|data: &[u8]| {
                     assert!(e.poll_timeout() > now, "the loop would spin");
                 }
             }
-            _ => e.stream_lost(serial, now, &"unplugged"),
+            6 => e.stream_lost(serial, now, &"unplugged"),
+            7 => {
+                let peer = peers[usize::from(arg) % 3];
+                if let Some(id) = e.accept(listener, peer, u64::from(arg) * 1000, now) {
+                    accepted.push(id);
+                }
+            }
+            8 => {
+                let chunk = take(usize::from(arg));
+                match accepted.get(usize::from(op >> 4) % accepted.len().max(1)) {
+                    Some(&id) if op & 8 == 0 => e.handle_stream(id, chunk, now),
+                    Some(&id) => {
+                        e.poll_transmit(id, now, usize::from(arg % 5), &mut queue);
+                        queue.drain(..).for_each(|t| e.on_sent(&t));
+                    }
+                    None => {}
+                }
+            }
+            _ => {
+                if arg & 1 == 0 {
+                    e.set_target(client, peers[usize::from(arg >> 1) % 3]);
+                    e.handle_datagram(client, peers[0], take(usize::from(arg)), now);
+                    e.poll_transmit(client, now, 8, &mut queue);
+                    queue.drain(..).for_each(|t| e.on_sent(&t));
+                } else if let Some(id) = accepted.pop() {
+                    e.stream_lost(id, now, &"closed");
+                }
+            }
         }
         while let Some(notice) = e.poll_event() {
             match notice {
+                Notice::Closed(iface) => accepted.retain(|a| *a != iface),
                 Notice::Open(iface) if arg & 1 == 0 => e.stream_opened(iface, now),
                 Notice::Open(iface) => e.stream_open_failed(iface, now, &"missing"),
                 Notice::Log(event) => {
