@@ -401,7 +401,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                     Some(remote) => {
                         let name = format!("tcp:{remote}");
                         let id = engine.add_stream_client(label, &name, rate, Timestamp::ZERO);
-                        drivers.push(Box::new(TcpStreamDriver::client(remote, id, waker.clone())));
+                        drivers.push(Box::new(TcpStreamDriver::client(t, id, waker.clone())));
                     }
                 }
             }

@@ -5,7 +5,7 @@
 //! keepalive (a peer that vanished without a word is noticed within about a minute).
 
 use std::io;
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::os::fd::{AsRawFd, RawFd};
 use std::time::Duration;
 
@@ -149,6 +149,8 @@ impl Driver for TcpListenerDriver {
 /// What a client knows of where it connects.
 struct Client {
     remote: Remote,
+    /// The local address to connect from, if the block names one.
+    local: Option<IpAddr>,
     /// Wakes the loop when a look-up has its answer.
     waker: Arc<Waker>,
     /// The look-up of `remote`, while under way.
@@ -168,12 +170,13 @@ pub struct TcpStreamDriver {
 
 impl TcpStreamDriver {
     /// A client of `remote`, connected when the core asks.
-    pub fn client(remote: &Remote, interface: InterfaceId, waker: Arc<Waker>) -> Self {
+    pub fn client(config: &TcpInterface, interface: InterfaceId, waker: Arc<Waker>) -> Self {
         TcpStreamDriver {
             interface,
             stream: None,
-            client: Some(Client {
+            client: config.connect.as_ref().map(|remote| Client {
                 remote: remote.clone(),
+                local: config.address,
                 waker,
                 lookup: None,
             }),
@@ -182,11 +185,14 @@ impl TcpStreamDriver {
         }
     }
 
-    /// Starts connecting to `to` without waiting: the stream, and whether it is
-    /// connected already.
-    fn connect(to: SocketAddr) -> io::Result<(TcpStream, bool)> {
+    /// Starts connecting to `to` (from `local`, if given) without waiting: the stream,
+    /// and whether it is connected already.
+    fn connect(to: SocketAddr, local: Option<IpAddr>) -> io::Result<(TcpStream, bool)> {
         let socket = Socket::new(Domain::for_address(to), Type::STREAM, Some(Protocol::TCP))?;
         socket.set_nonblocking(true)?;
+        if let Some(ip) = local {
+            socket.bind(&SocketAddr::new(ip, 0).into())?;
+        }
         let done = match socket.connect(&to.into()) {
             Ok(()) => true,
             Err(e) if e.raw_os_error() == Some(libc::EINPROGRESS) => false,
@@ -208,7 +214,7 @@ impl TcpStreamDriver {
                     client.lookup = Some(pending);
                     return Some(false);
                 }
-                Ok(answer) => match answer.and_then(Self::connect) {
+                Ok(answer) => match answer.and_then(|to| Self::connect(to, client.local)) {
                     Ok((stream, done)) => {
                         self.stream = Some(stream);
                         if !done {
@@ -257,7 +263,7 @@ impl Driver for TcpStreamDriver {
         };
         match Lookup::start(&client.remote, &client.waker).poll() {
             Ok(to) => {
-                let (stream, done) = Self::connect(to?)?;
+                let (stream, done) = Self::connect(to?, client.local)?;
                 self.stream = Some(stream);
                 self.connecting = !done;
                 Ok(done)
