@@ -123,6 +123,9 @@ impl Runtime {
             Progress::Lost => self.close(key),
             Progress::Done | Progress::Blocked => slot.ready = false,
         }
+        // A connection that closed is taken out of the loop now, before another one
+        // can be accepted under its (reused) interface number.
+        self.handle_notices(now);
         for driver in accepted {
             // Bytes may have arrived with the connection: read at once.
             self.add(driver, true);
