@@ -15,8 +15,8 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use common::net::{
-    ACCEPT_ALL, Counters, SECOND, attitude, connect, counters, free_tcp_port, heartbeat, number_of,
-    numbered, numbered_large, status_bytes, tcp_frames,
+    ACCEPT_ALL, Counters, SECOND, attitude, connect, counters, fd_count, free_tcp_port, heartbeat,
+    number_of, numbered, numbered_large, status_bytes, tcp_frames, wait_until,
 };
 use common::router::{Router, Scratch, free_udp_port};
 use mavtables::wire::Parser;
@@ -240,6 +240,64 @@ fn a_peer_closing_mid_frame_is_removed_and_nothing_else_changes() {
     assert_eq!(names, [link_name(&b), link_name(&cc)], "{}", end.text);
 }
 
+/// 3. A peer that resets its connection (SO_LINGER 0, then close: RST) while the router
+///    is writing a stream to it: its link is removed and another client gets every frame
+///    of the stream, in order.
+#[test]
+fn a_peer_resetting_while_written_to_does_not_disturb_the_others() {
+    const COUNT: u32 = 5_000;
+    let s = Scratch::new("reset");
+    let (mut router, to) = tcp_server(&s, "");
+    let healthy = join(&mut router, &to, 20);
+    let mut victim = join(&mut router, &to, 30);
+    let victim_name = link_name(&victim);
+    let mut sender = join(&mut router, &to, 10);
+    let healthy_name = link_name(&healthy);
+    let at_healthy = tcp_arrivals(healthy, 10, COUNT as usize, 30 * SECOND);
+    let send = thread::spawn(move || {
+        send_steadily(
+            |b| sender.write_all(b).expect("send"),
+            numbered,
+            10,
+            COUNT,
+            5_000,
+        );
+        sender
+    });
+    // The victim reads a part of the stream, then resets.
+    victim
+        .set_read_timeout(Some(Duration::from_millis(20)))
+        .expect("timeout");
+    let read = arrivals(
+        |b| victim.read(b).ok().filter(|n| *n > 0),
+        10,
+        500,
+        10 * SECOND,
+    );
+    assert!(
+        read.numbered.len() >= 500,
+        "the victim got part of the stream"
+    );
+    // Its last words go out just before the reset.
+    victim.write_all(&attitude(30, 99)).expect("write");
+    socket2::SockRef::from(&victim)
+        .set_linger(Some(Duration::ZERO))
+        .expect("linger 0");
+    drop(victim);
+    let c = counters_until(&mut router, "the victim's link removed", |c| {
+        c.link(&victim_name).is_none()
+    });
+    let _sender = send.join().expect("sender");
+    let (got, _healthy) = at_healthy.join().expect("healthy reader");
+    assert_all_in_order(&got.numbered, COUNT, "the healthy client");
+    assert_eq!(got.others, [attitude(30, 99)], "the victim's last words");
+    let c2 = counters(&mut router);
+    let h = c2.link(&healthy_name).expect("healthy link");
+    assert_eq!((h.queue_drops, h.send_errors), (0, 0), "{}", c2.text);
+    assert!(c.link(&healthy_name).is_some());
+    router.stop();
+}
+
 /// 4. A peer that stops reading while another sends a steady stream that goes to it and
 ///    to a healthy peer: the healthy peer gets every frame at the rate sent; the stuck
 ///    peer's queue stays within its bound (`link_bytes`) and the drops are counted; the
@@ -453,4 +511,59 @@ fn send_frames(sock: &UdpSocket, batch: &[u8]) {
     parser.feed(batch, |f| {
         sock.send(f.as_bytes()).expect("send");
     });
+}
+
+/// 6. A thousand connections that each send a heartbeat and close: afterwards the
+///    router holds as many descriptors as before and its memory is within 1 MiB.
+#[test]
+fn a_thousand_short_connections_leave_nothing_behind() {
+    const CYCLES: usize = 1_000;
+    const WARM_UP: usize = 200;
+    let s = Scratch::new("cycles");
+    let (mut router, to) = tcp_server(&s, "");
+    let pid = router.pid();
+    let cycle = |i: usize| {
+        let mut c = connect(&to);
+        c.write_all(&heartbeat((i % 200 + 1) as u8)).expect("write");
+    };
+    // Warm up the same way (the allocator's pools and the tables grow to what this many
+    // connections at once take); once the router has removed every link it holds the
+    // descriptors it always holds.
+    for i in 0..WARM_UP {
+        cycle(i);
+    }
+    counters_until(&mut router, "the warm-up links removed", |c| {
+        c.links.is_empty()
+    });
+    let baseline_fds = fd_count(pid);
+    let rss_before = status_bytes(pid, "VmRSS");
+    let start = Instant::now();
+    for i in 0..CYCLES {
+        cycle(i);
+    }
+    wait_until("every connection closed", 20 * SECOND, || {
+        fd_count(pid) == baseline_fds
+    });
+    let took = start.elapsed();
+    let rss_after = status_bytes(pid, "VmRSS");
+    eprintln!("{CYCLES} cycles in {took:?}; VmRSS {rss_before} -> {rss_after}");
+    assert!(
+        rss_after <= rss_before + MIB,
+        "VmRSS grew from {rss_before} to {rss_after}"
+    );
+    assert!(took < 30 * SECOND, "took {took:?}");
+    // Still serving: two new clients route to each other.
+    let mut a = join(&mut router, &to, 250);
+    let mut b = join(&mut router, &to, 251);
+    a.write_all(&attitude(250, 1)).expect("write");
+    assert_eq!(
+        tcp_frames(&mut b, 1, 5 * SECOND),
+        [attitude(250, 1)],
+        "b gets a's frame"
+    );
+    let c = counters(&mut router);
+    assert_eq!(c.links.len(), 2, "{}", c.text);
+    let server = c.interface(&format!("tcp {to}")).expect("server line");
+    assert_eq!(server.frames, (CYCLES + WARM_UP) as u64, "{}", c.text);
+    router.stop();
 }
