@@ -5,89 +5,14 @@
 
 mod common;
 
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
+use std::io::Write;
+use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::time::{Duration, Instant};
 
+use common::net::{
+    ACCEPT_ALL, SECOND, attitude, connect, free_tcp_port, heartbeat, tcp_frames, udp_frames,
+};
 use common::router::{Router, Scratch, free_udp_port};
-use mavtables::wire::Parser;
-use mavtables::wire::encode::{Header, encode_v2};
-
-const SECOND: Duration = Duration::from_secs(1);
-const ACCEPT_ALL: &str = "default_action accept;\n";
-
-/// A MAVLink 2 frame of message `id` from `sys.1` whose payload is `fill` repeated.
-fn frame(id: u32, sys: u8, seq: u8, fill: u8, len: usize) -> Vec<u8> {
-    let header = Header {
-        seq,
-        system: sys,
-        component: 1,
-    };
-    let mut out = Vec::new();
-    encode_v2(header, id, &vec![fill.max(1); len], None, &mut out).expect("encode");
-    out
-}
-
-fn heartbeat(sys: u8) -> Vec<u8> {
-    frame(0, sys, 0, 3, 9)
-}
-
-/// ATTITUDE number `n` from system `sys` (28 payload bytes, all `n + 1`).
-fn attitude(sys: u8, n: u8) -> Vec<u8> {
-    frame(30, sys, n, n.wrapping_add(1), 28)
-}
-
-/// Frames read from `read` until `want` frames arrived or `timeout` passed.
-fn collect(
-    mut read: impl FnMut(&mut [u8]) -> Option<usize>,
-    want: usize,
-    timeout: Duration,
-) -> Vec<Vec<u8>> {
-    let deadline = Instant::now() + timeout;
-    let mut parser = Parser::new();
-    let mut got = Vec::new();
-    let mut buf = [0u8; 4096];
-    while got.len() < want && Instant::now() < deadline {
-        if let Some(n) = read(&mut buf) {
-            parser.feed(&buf[..n], |f| got.push(f.as_bytes().to_vec()));
-        }
-    }
-    got
-}
-
-fn udp_frames(sock: &UdpSocket, want: usize, timeout: Duration) -> Vec<Vec<u8>> {
-    sock.set_read_timeout(Some(Duration::from_millis(50)))
-        .expect("timeout");
-    collect(|b| sock.recv(b).ok(), want, timeout)
-}
-
-fn tcp_frames(stream: &mut TcpStream, want: usize, timeout: Duration) -> Vec<Vec<u8>> {
-    stream
-        .set_read_timeout(Some(Duration::from_millis(50)))
-        .expect("timeout");
-    collect(|b| stream.read(b).ok().filter(|n| *n > 0), want, timeout)
-}
-
-fn free_tcp_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("a free port")
-        .port()
-}
-
-/// Connects to the router's TCP server at `to`, retrying until it listens.
-fn connect(to: &str) -> TcpStream {
-    let deadline = Instant::now() + 10 * SECOND;
-    loop {
-        match TcpStream::connect(to) {
-            Ok(s) => return s,
-            Err(e) => {
-                assert!(Instant::now() < deadline, "{to}: {e}");
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        }
-    }
-}
 
 /// A ground station that only listens (as QGroundControl does on UDP 14550) gets the
 /// vehicle's heartbeats through a `udp { connect …; }` block: the router sends to it from

@@ -2,6 +2,12 @@
 //! non-blocking reader/writer and the core: bounded reads per turn, and writes that keep
 //! a partly written frame to finish first, so a frame is never cut and never dropped
 //! halfway while the stream lives.
+//!
+//! A failed write does not end the stream at once: what the peer sent before it went
+//! away may still wait to be read (a peer that sends its last frame and closes makes the
+//! next write fail, often before the loop has read that frame). The loss is reported by
+//! the next [`StreamIo::receive`] once it has read everything, or by the next
+//! [`StreamIo::flush`] if no read came in between.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -21,6 +27,8 @@ pub struct StreamIo {
     partial: Option<(Transmit, usize)>,
     /// Scratch for [`Engine::poll_transmit`].
     next: VecDeque<Transmit>,
+    /// A write failed: the stream is lost once what is left to read has been read.
+    failed: Option<io::Error>,
 }
 
 impl Default for StreamIo {
@@ -29,6 +37,7 @@ impl Default for StreamIo {
             buffer: vec![0; READ_CHUNK],
             partial: None,
             next: VecDeque::with_capacity(1),
+            failed: None,
         }
     }
 }
@@ -37,6 +46,7 @@ impl StreamIo {
     /// Forgets what was in flight (the stream is gone).
     pub fn clear(&mut self) {
         self.partial = None;
+        self.failed = None;
     }
 
     /// True if no frame is partly written.
@@ -45,7 +55,8 @@ impl StreamIo {
     }
 
     /// Reads what `stream` has (a bounded amount) into the core's interface `id`. End of
-    /// stream and errors are reported to the core as a loss.
+    /// stream and errors are reported to the core as a loss, and so is a failed write
+    /// once nothing is left to read.
     pub fn receive(
         &mut self,
         stream: &mut impl Read,
@@ -56,14 +67,26 @@ impl StreamIo {
         for _ in 0..READS_PER_TURN {
             match stream.read(&mut self.buffer) {
                 Ok(0) => {
-                    engine.stream_lost(id, now, &"end of stream");
+                    match self.failed.take() {
+                        Some(e) => engine.stream_lost(id, now, &e),
+                        None => engine.stream_lost(id, now, &"end of stream"),
+                    }
                     return Progress::Lost;
                 }
                 Ok(n) => engine.handle_stream(id, &self.buffer[..n], now),
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    return match self.failed.take() {
+                        Some(e) => {
+                            engine.stream_lost(id, now, &e);
+                            Progress::Lost
+                        }
+                        None => Progress::Done,
+                    };
+                }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => {
-                    engine.stream_lost(id, now, &e);
+                    let why = self.failed.take().unwrap_or(e);
+                    engine.stream_lost(id, now, &why);
                     return Progress::Lost;
                 }
             }
@@ -72,7 +95,10 @@ impl StreamIo {
     }
 
     /// Writes what the core has for interface `id`, highest priority first, as far as
-    /// `stream` takes it. A write error loses the stream (and the frame being written).
+    /// `stream` takes it. A write error drops the frame being written and stops the
+    /// writing; it gives `Blocked`, so that the loop watches the descriptor, whose error
+    /// wakes it to read what is left ([`StreamIo::receive`] then reports the loss). If
+    /// the loop flushes again without a read in between, the loss is reported here.
     pub fn flush(
         &mut self,
         stream: &mut impl Write,
@@ -80,6 +106,10 @@ impl StreamIo {
         id: InterfaceId,
         now: Timestamp,
     ) -> Progress {
+        if let Some(e) = self.failed.take() {
+            engine.stream_lost(id, now, &e);
+            return Progress::Lost;
+        }
         loop {
             let (t, done) = match self.partial.take() {
                 Some(p) => p,
@@ -105,8 +135,8 @@ impl StreamIo {
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => self.partial = Some((t, done)),
                 Err(e) => {
                     engine.on_send_failed(id, &t, &e);
-                    engine.stream_lost(id, now, &e);
-                    return Progress::Lost;
+                    self.failed = Some(e);
+                    return Progress::Blocked;
                 }
             }
         }
