@@ -148,6 +148,36 @@ fn ipv6_peers_route_through_a_udp_server_on_loopback() {
     router.stop();
 }
 
+/// IPv6 over TCP and for a UDP client: a vehicle on a TCP server on [::1] reaches a
+/// ground station that only listens on [::1], through `udp { connect [::1]:P; }`, and a
+/// TCP client of the router connected to an IPv6 server gets the same.
+#[test]
+fn ipv6_tcp_server_tcp_client_and_udp_client() {
+    let Ok(gcs) = UdpSocket::bind("[::1]:0") else {
+        eprintln!("no IPv6 loopback here: skipped");
+        return;
+    };
+    let gcs_port = gcs.local_addr().expect("addr").port();
+    let upstream = TcpListener::bind("[::1]:0").expect("bind");
+    let upstream_port = upstream.local_addr().expect("addr").port();
+    let s = Scratch::new("ipv6-tcp");
+    let port = free_tcp_port();
+    let config = format!(
+        "tcp {{ port {port}; address ::1; }}
+         udp {{ connect [::1]:{gcs_port}; }}
+         tcp {{ connect [::1]:{upstream_port}; }}
+{ACCEPT_ALL}"
+    );
+    let mut router = Router::start(&s, &config, 1);
+    let (mut up, _) = upstream.accept().expect("the router connects over IPv6");
+    let mut vehicle = connect(&format!("[::1]:{port}"));
+    vehicle.write_all(&heartbeat(1)).expect("write");
+    router.wait_for("new component 1.1 on tcp:[::1]:");
+    assert_eq!(udp_frames(&gcs, 1, 5 * SECOND), [heartbeat(1)]);
+    assert_eq!(tcp_frames(&mut up, 1, 5 * SECOND), [heartbeat(1)]);
+    router.stop();
+}
+
 /// `max_peers` and `allow`: remotes beyond the limit or outside the ranges are refused,
 /// counted per reason and said once; the links that exist keep routing.
 #[test]
