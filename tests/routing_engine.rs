@@ -464,3 +464,25 @@ fn a_udp_client_holds_its_packets_until_it_knows_where_to_send() {
     let pool = e.router().link(link).expect("link").pool().clone();
     assert_eq!(pool.addresses(Timestamp::ZERO).count(), 2);
 }
+
+#[test]
+fn a_tcp_client_tries_at_once_then_at_most_every_second() {
+    let mut e = engine(ACCEPT);
+    let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    notices(&mut e);
+    e.stream_opened(client, Timestamp::ZERO);
+    let lost = Timestamp::from_secs(10);
+    e.stream_lost(client, lost, &"reset");
+    let mut attempts = Vec::new();
+    let mut now = lost;
+    while now < lost + Duration::from_secs(5) {
+        e.handle_timeout(now);
+        if notices(&mut e).contains(&Notice::Open(client)) {
+            attempts.push(now.saturating_since(lost).as_millis());
+            e.stream_open_failed(client, now, &"connection refused");
+        }
+        now = e.poll_timeout();
+    }
+    assert_eq!(attempts, [0, 200, 600, 1400, 2400, 3400, 4400]);
+}

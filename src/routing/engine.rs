@@ -33,11 +33,11 @@ use super::admission;
 use super::counters::InterfaceReport;
 use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
-use super::interface::{Interface, InterfaceId, Kind};
+use super::interface::{Interface, InterfaceId, Kind, Reopen};
 use super::link::LinkId;
 use super::pacer::Pace;
 use super::queue::Packet;
-use super::reconnect::{Connection, FIRST_BACKOFF};
+use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF};
 use super::remotes::Remotes;
 use super::router::{Output, Router, RouterOptions};
 use super::stale::StaleTail;
@@ -211,13 +211,13 @@ impl Engine {
             format!("serial device {device}"),
             StaleTail::new(baudrate),
             max_bitrate,
-            Kind::stream(link, Connection::new(now), None, FIRST_BACKOFF, None),
+            Kind::stream(link, Connection::new(now), None, Reopen::DEVICE),
         ))
     }
 
     /// Adds a stream client (a TCP client) named `label` whose one link is `link_name`:
     /// opened at once, reconnected at once after a loss and then with a backoff capped
-    /// at two seconds, forever; what was queued while it was down longer than
+    /// at one second, forever; what was queued while it was down longer than
     /// [`FORGET_AFTER`] is dropped when it comes back.
     pub fn add_stream_client(
         &mut self,
@@ -234,8 +234,7 @@ impl Engine {
                 link,
                 Connection::new(now),
                 None,
-                Duration::ZERO,
-                Some(FORGET_AFTER),
+                Reopen::client(FORGET_AFTER),
             ),
         ))
     }
@@ -288,7 +287,7 @@ impl Engine {
         Some(self.push_interface(Interface::network(
             name,
             max_bitrate,
-            Kind::stream(link, Connection::Open, Some(listener), Duration::ZERO, None),
+            Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),
         )))
     }
 
@@ -606,8 +605,12 @@ impl Engine {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
+        let cap = match &interface.kind {
+            Kind::Stream { reopen, .. } => reopen.max_wait,
+            _ => MAX_BACKOFF,
+        };
         if let Some(connection) = interface.connection_mut()
-            && connection.failed(now)
+            && connection.failed(now, cap)
         {
             interface.io_errors += 1;
             self.notices.push_back(Notice::Warning(format!(

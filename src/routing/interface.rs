@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use super::admission::Refused;
 use super::link::LinkId;
 use super::pacer::{DEFAULT_BURST, Pacer};
-use super::reconnect::Connection;
+use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF, MAX_RECONNECT_WAIT};
 use super::remotes::Remotes;
 use super::stale::StaleTail;
 use super::time::Timestamp;
@@ -83,26 +83,50 @@ pub enum Kind {
     },
 }
 
+impl Reopen {
+    /// A serial device: tried 100 ms after a loss, then with a backoff up to 2 s;
+    /// what was queued is kept.
+    pub const DEVICE: Reopen = Reopen {
+        first_wait: FIRST_BACKOFF,
+        max_wait: MAX_BACKOFF,
+        forget_after: None,
+        down_since: None,
+    };
+
+    /// A TCP client: tried again at once, then with a backoff up to 1 s; what was
+    /// queued while it was down longer than `forget_after` is dropped.
+    pub const fn client(forget_after: std::time::Duration) -> Reopen {
+        Reopen {
+            first_wait: std::time::Duration::ZERO,
+            max_wait: MAX_RECONNECT_WAIT,
+            forget_after: Some(forget_after),
+            down_since: None,
+        }
+    }
+
+    /// An accepted connection: never reopened (it is removed when it closes).
+    pub const ACCEPTED: Reopen = Reopen {
+        first_wait: std::time::Duration::ZERO,
+        max_wait: std::time::Duration::ZERO,
+        forget_after: None,
+        down_since: None,
+    };
+}
+
 impl Kind {
     /// A stream that is `link`, in state `connection`, accepted by `accepted_by` (if
-    /// any), waiting `first_wait` after a loss and forgetting its queue after
-    /// `forget_after` down.
+    /// any), coming back after a loss as `reopen` says.
     pub fn stream(
         link: LinkId,
         connection: Connection,
         accepted_by: Option<InterfaceId>,
-        first_wait: std::time::Duration,
-        forget_after: Option<std::time::Duration>,
+        reopen: Reopen,
     ) -> Self {
         Kind::Stream {
             link,
             connection,
             accepted_by,
-            reopen: Reopen {
-                first_wait,
-                forget_after,
-                down_since: None,
-            },
+            reopen,
         }
     }
 }
@@ -113,6 +137,8 @@ pub struct Reopen {
     /// Wait before the first attempt after a loss (a serial device needs a moment to
     /// reappear; a TCP client tries again at once).
     pub first_wait: std::time::Duration,
+    /// Longest wait between attempts.
+    pub max_wait: std::time::Duration,
     /// If the stream stayed down longer than this, what was queued for it meanwhile is
     /// dropped when it comes back, so stale telemetry is not replayed (None: kept).
     pub forget_after: Option<std::time::Duration>,

@@ -10,6 +10,9 @@ use super::time::Timestamp;
 pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
 /// Longest wait between attempts to open a missing device.
 pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+/// Longest wait between attempts of a TCP client to reach its server, so that it is
+/// connected again within a second of the server's return.
+pub const MAX_RECONNECT_WAIT: Duration = Duration::from_secs(1);
 
 /// The state of a stream's connection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,16 +70,16 @@ impl Connection {
         }
     }
 
-    /// The attempt failed at `now`: wait the backoff, then double it. Returns true if
-    /// this is the first failure of an outage (the one worth saying).
-    pub fn failed(&mut self, now: Timestamp) -> bool {
+    /// The attempt failed at `now`: wait the backoff, then double it up to `cap`.
+    /// Returns true if this is the first failure of an outage (the one worth saying).
+    pub fn failed(&mut self, now: Timestamp, cap: Duration) -> bool {
         let backoff = match *self {
             Connection::Closed { backoff, .. } => backoff,
             Connection::Open => FIRST_BACKOFF,
         };
         *self = Connection::Closed {
             retry_at: now + backoff,
-            backoff: (backoff * 2).min(MAX_BACKOFF),
+            backoff: (backoff * 2).min(cap),
             asked: false,
         };
         backoff == FIRST_BACKOFF
