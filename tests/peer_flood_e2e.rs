@@ -14,34 +14,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use common::net::{heartbeat, number_of, numbered};
 use common::router::{Router, Scratch, free_udp_port};
 use mavtables::wire::Parser;
-use mavtables::wire::encode::{Header, encode_v2};
 use socket2::{Domain, Protocol, Socket, Type};
 
 const SPOOFED: u32 = 300_000;
-
-fn frame(id: u32, sys: u8, seq: u8, payload: &[u8]) -> Vec<u8> {
-    let header = Header {
-        seq,
-        system: sys,
-        component: 1,
-    };
-    let mut out = Vec::new();
-    encode_v2(header, id, payload, None, &mut out).expect("encode");
-    out
-}
-
-fn heartbeat(sys: u8) -> Vec<u8> {
-    frame(0, sys, 0, &[0, 0, 0, 0, 6, 8, 0, 0, 3])
-}
-
-/// ATTITUDE number `n` (its number in the first four payload bytes).
-fn attitude(n: u32) -> Vec<u8> {
-    let mut payload = [0x55u8; 28];
-    payload[..4].copy_from_slice(&n.to_le_bytes());
-    frame(30, 10, n as u8, &payload)
-}
 
 /// An IPv4 + UDP datagram from `from` to `to` carrying `payload` (checksums left to the
 /// kernel: IP's is filled in, UDP's 0 means none).
@@ -118,8 +96,7 @@ fn spoofed_sources_neither_grow_memory_nor_cost_real_peers_a_frame() {
                     quiet_since = Instant::now();
                     parser.feed(&buf[..n], |f| {
                         if f.message_id() == 30 {
-                            let p = f.payload_padded();
-                            got.push(u32::from_le_bytes([p[0], p[1], p[2], p[3]]));
+                            got.push(number_of(f.as_bytes()));
                         }
                     });
                 }
@@ -147,7 +124,7 @@ fn spoofed_sources_neither_grow_memory_nor_cost_real_peers_a_frame() {
     let mut sent = 0u32;
     let start = Instant::now();
     while !flood.is_finished() || sent < 100 {
-        a.send_to(&attitude(sent), to).expect("send");
+        a.send_to(&numbered(10, sent), to).expect("send");
         sent += 1;
         let next = start + Duration::from_millis(10) * sent;
         thread::sleep(next.saturating_duration_since(Instant::now()));

@@ -317,16 +317,9 @@ impl<'a> Checker<'a, '_> {
     /// A decimal number within `min..=max`, or an error naming `what`.
     fn unsigned(&mut self, span: Span, min: u64, max: u64, what: &str) -> Option<u64> {
         let text = self.text(span);
-        match text.parse::<u64>() {
-            Ok(v) if (min..=max).contains(&v) => Some(v),
-            _ => {
-                self.error(Diagnostic::new(
-                    span,
-                    format!("{what} ({text}) is outside of the allowed range ({min} - {max})"),
-                ));
-                None
-            }
-        }
+        ranged(text, min, max, what)
+            .map_err(|message| self.error(Diagnostic::new(span, message)))
+            .ok()
     }
 
     /// One part of a MAVLink address (0..=255), named `System` or `Component`.
@@ -569,5 +562,15 @@ impl<'a> Checker<'a, '_> {
             d = d.with_note(note);
         }
         self.error(d);
+    }
+}
+
+/// `text` as a decimal number within `min..=max`, or the error text naming `what`.
+pub(super) fn ranged(text: &str, min: u64, max: u64, what: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(v) if (min..=max).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "{what} ({text}) is outside of the allowed range ({min} - {max})"
+        )),
     }
 }

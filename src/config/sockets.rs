@@ -7,6 +7,7 @@ use super::ast::{Ast, IpAst, SocketSetting};
 use super::diagnostic::Diagnostic;
 use super::model::*;
 use super::net::{self, TextError};
+use super::semantics::ranged;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
 
 /// Which block is being checked.
@@ -197,16 +198,9 @@ impl Block<'_, '_, '_> {
     /// A decimal number within `min..=max`, or an error naming `what`.
     fn number(&mut self, span: Span, min: u64, max: u64, what: &str) -> Option<u64> {
         let text = self.ast.text(span);
-        match text.parse::<u64>() {
-            Ok(v) if (min..=max).contains(&v) => Some(v),
-            _ => {
-                self.error(Diagnostic::new(
-                    span,
-                    format!("{what} ({text}) is outside of the allowed range ({min} - {max})"),
-                ));
-                None
-            }
-        }
+        ranged(text, min, max, what)
+            .map_err(|message| self.error(Diagnostic::new(span, message)))
+            .ok()
     }
 
     /// A written address: IPv4 octets are range-checked (every bad one reported); IPv6

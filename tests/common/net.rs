@@ -60,7 +60,8 @@ pub fn numbered_large(sys: u8, n: u32) -> Vec<u8> {
 
 /// The counter of a frame made by [`numbered`] or [`numbered_large`].
 pub fn number_of(frame: &[u8]) -> u32 {
-    u32::from_le_bytes(frame[10..14].try_into().expect("a payload"))
+    let frame = mavtables::wire::Frame::parse_exact(frame).expect("a frame");
+    u32::from_le_bytes(frame.payload()[..4].try_into().expect("a counter"))
 }
 
 /// Frames read from `read` until `want` frames arrived or `timeout` passed.
