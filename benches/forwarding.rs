@@ -42,7 +42,8 @@
 //! is frames missing at a sink by sequence number. Sinks may be clients of it too (they
 //! write their HEARTBEAT into the connection and parse the stream across reads). `--tcp`
 //! compares UDP→UDP, TCP→TCP and TCP→UDP, one receiver, a router each: ladder, then
-//! interleaved latency rounds at 10k frames/s and TCP p50 ÷ UDP p50 round by round.
+//! interleaved latency rounds at 10k frames/s and TCP p50 ÷ UDP p50 round by round
+//! (`--tcp --latency`: the latency rounds alone).
 //! `--tcp-fanout`: 100 TCP clients receive a broadcast stream of 1k frames/s from a TCP
 //! and (another router) a UDP generator; one thread reads them all every 2 ms
 //! ([`Reading::Sweep`]); the figure is the router's CPU per frame delivered.
@@ -1467,8 +1468,9 @@ const TCP_P50_TARGET: f64 = 1.2;
 /// `--tcp` (also part of the full run): UDP→UDP, TCP→TCP and TCP→UDP through a router
 /// each (UDP port and TCP server, 1 receiver): the ladder of each, one after the other,
 /// then `plan.tcp_rounds` interleaved latency rounds at 10k frames/s, and each TCP path's
-/// p50 ÷ UDP→UDP's p50 of the same round. Prints a Markdown table.
-fn tcp_paths(exe: &Path, plan: &Plan, out: &mut impl Write) -> io::Result<()> {
+/// p50 ÷ UDP→UDP's p50 of the same round. Prints a Markdown table. Without `ladders`
+/// (`--tcp --latency`) only the latency rounds.
+fn tcp_paths(exe: &Path, plan: &Plan, ladders: bool, out: &mut impl Write) -> io::Result<()> {
     let mut setups = Vec::new();
     for legs in TCP_LEGS {
         match Setup::open(Mode::Router, legs, 1, Some(exe)) {
@@ -1477,7 +1479,7 @@ fn tcp_paths(exe: &Path, plan: &Plan, out: &mut impl Write) -> io::Result<()> {
         }
     }
     let mut cpu_50k = Vec::new();
-    for (legs, setup, row) in &mut setups {
+    for (legs, setup, row) in setups.iter_mut().filter(|_| ladders) {
         let steps = ladder(setup, &legs.name(), plan, row);
         cpu_50k.push(steps.iter().find(|s| s.0 == CPU_RATE).and_then(|s| s.1));
     }
@@ -1547,12 +1549,18 @@ fn tcp_paths(exe: &Path, plan: &Plan, out: &mut impl Write) -> io::Result<()> {
         };
         writeln!(
             out,
-            "| {} | {} ({}) | {} | {:.0} / {:.0} / {:.0} µs{} | {} | {ratio} |",
+            "| {} | {} | {} | {:.0} / {:.0} / {:.0} µs{} | {} | {ratio} |",
             legs.name(),
-            row.zero_loss
-                .map_or("none".into(), |r| format!("{}/s", fmt_rate(r))),
-            row.stop,
-            cpu_50k[i].map_or("—".into(), |c| format!("{c:.2} µs")),
+            match (ladders, row.zero_loss) {
+                (false, _) => "—".into(),
+                (true, None) => format!("none ({})", row.stop),
+                (true, Some(r)) => format!("{}/s ({})", fmt_rate(r), row.stop),
+            },
+            cpu_50k
+                .get(i)
+                .copied()
+                .flatten()
+                .map_or("—".into(), |c| format!("{c:.2} µs")),
             q(0),
             q(1),
             q(2),
@@ -1927,7 +1935,8 @@ fn main() {
     if tcp || fanout {
         let mut out = io::stdout().lock();
         if tcp {
-            let _ = tcp_paths(&exe, &plan, &mut out);
+            let ladders = !args.iter().any(|a| a == "--latency");
+            let _ = tcp_paths(&exe, &plan, ladders, &mut out);
         }
         if fanout {
             let _ = tcp_fanout(&exe, &plan, &mut out);
@@ -1987,7 +1996,7 @@ fn main() {
         }
     }
     let _ = writeln!(out, "\nTCP forwarding (`--tcp`, `--tcp-fanout`):");
-    let _ = tcp_paths(&exe, &plan, &mut out);
+    let _ = tcp_paths(&exe, &plan, true, &mut out);
     let _ = tcp_fanout(&exe, &plan, &mut out);
     let _ = writeln!(out, "total time {:.0} s", started.elapsed().as_secs_f64());
 }
