@@ -305,6 +305,9 @@ struct GenReport {
     errors: u64,
     /// From first to last send.
     elapsed: Duration,
+    /// Time spent in `write` on a TCP stream: near `elapsed` when the router does not
+    /// read fast enough (the socket's send buffer is full and writes wait).
+    in_write: Duration,
 }
 
 /// Sends frames numbered from `seq_start` to every address of `dests`, or written to
@@ -347,7 +350,9 @@ fn generate(
             }
             if let Some(stream) = stream {
                 // One write per burst, as one `sendmmsg` per burst over UDP.
+                let t = Instant::now();
                 report.errors += write_stream(stream, &buf, start + deadline);
+                report.in_write += t.elapsed();
                 report.sent += n;
                 continue;
             }
@@ -1319,8 +1324,17 @@ fn ladder(setup: &mut Setup, label: &str, plan: &Plan, row: &mut Row) -> Vec<(f6
             t.sink_errors()
         );
         if !t.on_rate() {
+            let writes = if setup.gen_tcp.is_some() {
+                format!(
+                    ", {:.0}% of the time in write",
+                    100.0 * t.generator.in_write.as_secs_f64()
+                        / t.generator.elapsed.as_secs_f64().max(1e-9)
+                )
+            } else {
+                String::new()
+            };
             row.stop = format!(
-                "{}/s not reached: generator at most {}/s",
+                "{}/s not reached: generator at most {}/s{writes}",
                 fmt_rate(rate),
                 fmt_rate(t.achieved())
             );
