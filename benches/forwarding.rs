@@ -1,4 +1,4 @@
-//! UDP forwarding benchmark: a load generator and sinks of our own,
+//! UDP and TCP forwarding benchmark: a load generator and sinks of our own,
 //! on 127.0.0.1 only.
 //!
 //! Run: `cargo bench --bench forwarding` (about 2–3 minutes), or
@@ -33,9 +33,23 @@
 //! Each sink announces itself with a HEARTBEAT (systems 101, 102, 103) to the router,
 //! once before the run and then every second; SYSTEM_TIME has no target, so the router
 //! forwards it to every link but the generator's.
+//!
+//! TCP (`--tcp`, `--tcp-fanout`, and at the end of the full run): the router then also
+//! has a TCP server (`tcp { port P; address 127.0.0.1; }`), where every connection is a
+//! link of its own. The generator may be a client of it ([`Legs`]): it writes each burst
+//! with one `write` (`TCP_NODELAY`, paced as over UDP); a step fails if it falls behind
+//! its rate by more than 5% (the router not reading fast enough shows up so), and "loss"
+//! is frames missing at a sink by sequence number. Sinks may be clients of it too (they
+//! write their HEARTBEAT into the connection and parse the stream across reads). `--tcp`
+//! compares UDP→UDP, TCP→TCP and TCP→UDP, one receiver, a router each: ladder, then
+//! interleaved latency rounds at 10k frames/s and TCP p50 ÷ UDP p50 round by round
+//! (`--tcp --latency`: the latency rounds alone).
+//! `--tcp-fanout`: 100 TCP clients receive a broadcast stream of 1k frames/s from a TCP
+//! and (another router) a UDP generator; one thread reads them all every 2 ms
+//! ([`Reading::Sweep`]); the figure is the router's CPU per frame delivered.
 
-use std::io::{self, ErrorKind, Write};
-use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
+use std::io::{self, ErrorKind, Read, Write};
+use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, TcpListener, TcpStream, UdpSocket};
 use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -291,14 +305,20 @@ struct GenReport {
     errors: u64,
     /// From first to last send.
     elapsed: Duration,
+    /// Time spent in `write` on a TCP stream: near `elapsed` when the router does not
+    /// read fast enough (the socket's send buffer is full and writes wait).
+    in_write: Duration,
 }
 
-/// Sends frames numbered from `seq_start` to every address of `dests`, at `rate`
-/// frames/s (or as fast as possible with `None`) for `duration`, in bursts paced per
-/// tick (see [`TICK`]); a generator that falls behind stops after 1.5 × `duration`.
+/// Sends frames numbered from `seq_start` to every address of `dests`, or written to
+/// `stream` if there is one, at `rate` frames/s (or as fast as possible with `None`) for
+/// `duration`, in bursts paced per tick (see [`TICK`]); a generator that falls behind
+/// stops after 1.5 × `duration`.
+#[allow(clippy::too_many_arguments)]
 fn generate(
     sock: &UdpSocket,
     dests: &[SocketAddrV4],
+    stream: Option<&TcpStream>,
     rate: Option<f64>,
     duration: Duration,
     seq_start: u32,
@@ -328,6 +348,14 @@ fn generate(
             for i in 0..n {
                 encode_probe(seq_start + (report.sent + i) as u32, now, &mut buf);
             }
+            if let Some(stream) = stream {
+                // One write per burst, as one `sendmmsg` per burst over UDP.
+                let t = Instant::now();
+                report.errors += write_stream(stream, &buf, start + deadline);
+                report.in_write += t.elapsed();
+                report.sent += n;
+                continue;
+            }
             let frame_len = buf.len() / n as usize;
             let msgs: Vec<(&[u8], SocketAddrV4)> = buf
                 .chunks(frame_len)
@@ -353,6 +381,24 @@ fn generate(
     }
     report.elapsed = start.elapsed();
     report
+}
+
+/// Writes all of `bytes` to `stream` (which has a write timeout), waiting while the
+/// router does not read until `give_up`; returns 1 if it gave up or the write failed.
+/// (The frame cut short then reaches the sink as garbage, which its parser skips.)
+fn write_stream(mut stream: &TcpStream, mut bytes: &[u8], give_up: Instant) -> u64 {
+    while !bytes.is_empty() {
+        match stream.write(bytes) {
+            Ok(0) => return 1,
+            Ok(n) => bytes = &bytes[n..],
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e)
+                if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut)
+                    && Instant::now() < give_up => {}
+            Err(_) => return 1,
+        }
+    }
+    0
 }
 
 /// Sends every message, returns how many the kernel refused (counted, then skipped).
@@ -407,15 +453,127 @@ struct SinkReport {
     latencies: Vec<u32>,
 }
 
+/// A sink's socket: a UDP socket the router sends datagrams to, or a connection to the
+/// router's TCP server (a byte stream: frames may straddle reads).
+enum Sock {
+    Udp(UdpSocket),
+    Tcp(TcpStream),
+}
+
+impl Sock {
+    /// Reads one datagram, or what the stream has; waits up to the read timeout unless
+    /// the socket is non-blocking. The end of a stream is an error.
+    fn recv(&self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            Sock::Udp(s) => s.recv(buf),
+            Sock::Tcp(s) => match Read::read(&mut &*s, buf)? {
+                0 => Err(ErrorKind::UnexpectedEof.into()),
+                n => Ok(n),
+            },
+        }
+    }
+
+    /// Sends `frame` to the router: over the connection, or as a datagram to its UDP
+    /// port `udp`.
+    fn announce(&self, frame: &[u8], udp: SocketAddrV4) -> io::Result<()> {
+        match self {
+            Sock::Udp(s) => s.send_to(frame, udp).map(drop),
+            Sock::Tcp(s) => Write::write_all(&mut &*s, frame),
+        }
+    }
+
+    fn set_nonblocking(&self, on: bool) -> io::Result<()> {
+        match self {
+            Sock::Udp(s) => s.set_nonblocking(on),
+            Sock::Tcp(s) => s.set_nonblocking(on),
+        }
+    }
+
+    fn is_stream(&self) -> bool {
+        matches!(self, Sock::Tcp(_))
+    }
+}
+
+/// One sink's accounting of one trial: loss, duplicates, order and latency by sequence
+/// number, whatever the transport.
+struct Tally {
+    report: SinkReport,
+    seen: Vec<u64>,
+    highest: Option<u32>,
+    parser: Parser,
+    seq_start: u32,
+}
+
+impl Tally {
+    fn new(seq_start: u32) -> Tally {
+        Tally {
+            report: SinkReport::default(),
+            seen: Vec::new(),
+            highest: None,
+            parser: Parser::new(),
+            seq_start,
+        }
+    }
+
+    /// Counts the frames of `bytes`, received at `now` (ns since the base instant).
+    /// `datagram`: `bytes` is one datagram, which holds whole frames, so nothing carries
+    /// over; else it is the next piece of a stream.
+    fn feed(&mut self, bytes: &[u8], now: u64, datagram: bool) {
+        let Tally {
+            report: r,
+            seen,
+            highest,
+            parser,
+            seq_start,
+        } = self;
+        parser.feed(bytes, |frame| {
+            let Some((seq, sent)) = decode_probe(&frame) else {
+                r.other += 1;
+                return;
+            };
+            let Some(i) = seq.checked_sub(*seq_start).map(|i| i as usize) else {
+                r.stale += 1;
+                return;
+            };
+            if seen.len() <= i / 64 {
+                seen.resize(i / 64 + 1, 0);
+            }
+            let bit = 1u64 << (i % 64);
+            if seen[i / 64] & bit != 0 {
+                r.duplicates += 1;
+                return;
+            }
+            seen[i / 64] |= bit;
+            r.distinct += 1;
+            if highest.is_some_and(|h| seq < h) {
+                r.reordered += 1;
+            } else {
+                *highest = Some(seq);
+            }
+            r.latencies
+                .push(now.saturating_sub(sent).min(u32::MAX as u64) as u32);
+        });
+        if datagram {
+            parser.clear();
+        }
+    }
+
+    fn finish(mut self) -> SinkReport {
+        self.report.rejected = self.parser.stats().rejected();
+        self.report
+    }
+}
+
 /// How a sink behaves in one trial.
 struct SinkJob<'a> {
-    sock: &'a UdpSocket,
+    sock: &'a Sock,
     seq_start: u32,
     base: Instant,
     stop: &'a AtomicBool,
     /// Distinct frames so far, for the drain wait.
     progress: &'a AtomicU64,
-    /// Router mode: where to send this sink's heartbeat every second, and as whom.
+    /// Router mode: the router's UDP port (where a UDP sink sends its heartbeat every
+    /// second; a TCP sink writes it to its connection), and as whom.
     announce: Option<(SocketAddrV4, u8)>,
     /// How the sink reads.
     reading: Reading,
@@ -424,24 +582,30 @@ struct SinkJob<'a> {
 /// How a sink waits for datagrams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Reading {
-    /// Blocks in `recvmmsg` and wakes for every datagram: for latency.
+    /// Blocks in `recvmmsg` (or `read`) and wakes for every datagram (or segment): for
+    /// latency.
     Eager,
     /// Once its queue is empty, sleeps [`LAZY_POLL`] before reading again, so it wakes
     /// at most 2,000 times a second whatever the rate and leaves the CPU to the router
     /// (on this VM a wake-up per datagram costs more than the datagram): for throughput.
     Lazy,
+    /// One thread for all sinks, which reads every socket without blocking until it is
+    /// empty, then sleeps [`SWEEP_POLL`]: for many sinks (the TCP fan-out), whose
+    /// threads would otherwise take the CPU from the router. No heartbeats.
+    Sweep,
 }
 
 /// Sleep of a [`Reading::Lazy`] sink between reads; its 8 MB receive buffer holds
 /// about 10 ms at 1M frames/s.
 const LAZY_POLL: Duration = Duration::from_micros(500);
+/// Sleep of the [`Reading::Sweep`] thread between sweeps.
+const SWEEP_POLL: Duration = Duration::from_millis(2);
+/// Largest read from a TCP sink's stream.
+const STREAM_READ: usize = sys::BATCH * DGRAM_MAX;
 
 /// Receives until `stop` is set (checked at least every read timeout).
 fn sink(job: SinkJob<'_>) -> SinkReport {
-    let mut r = SinkReport::default();
-    let mut seen: Vec<u64> = Vec::new();
-    let mut highest: Option<u32> = None;
-    let mut parser = Parser::new();
+    let mut tally = Tally::new(job.seq_start);
     let mut bufs = Box::new([[0u8; DGRAM_MAX]; sys::BATCH]);
     let mut lens = [0usize; sys::BATCH];
     let mut froms = [SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0); sys::BATCH];
@@ -451,58 +615,81 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
         if let (Some((router, _)), Some(hb)) = (job.announce, &hb)
             && Instant::now() >= next_hb
         {
-            let _ = job.sock.send_to(hb, router);
+            let _ = job.sock.announce(hb, router);
             next_hb += Duration::from_secs(1);
         }
-        let n = match sys::recv_batch(job.sock.as_raw_fd(), &mut bufs, &mut lens, &mut froms) {
-            Ok(n) => n,
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
-            Err(e) if e.kind() == ErrorKind::Interrupted => 0,
+        // (pieces read, whether the read filled what was offered)
+        let got = match job.sock {
+            Sock::Udp(s) => sys::recv_batch(s.as_raw_fd(), &mut bufs, &mut lens, &mut froms)
+                .map(|n| (n, n == sys::BATCH)),
+            Sock::Tcp(_) => job.sock.recv(bufs.as_flattened_mut()).map(|n| {
+                lens[0] = n;
+                (1, n == STREAM_READ)
+            }),
+        };
+        let (n, full) = match got {
+            Ok(got) => got,
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => (0, false),
+            Err(e) if e.kind() == ErrorKind::Interrupted => (0, false),
             Err(_) => {
-                r.errors += 1;
+                tally.report.errors += 1;
                 thread::sleep(Duration::from_millis(1));
-                0
+                (0, false)
             }
         };
         let now = ns_since(job.base);
-        for (buf, &len) in bufs.iter().zip(&lens[..n]) {
-            parser.feed(&buf[..len], |frame| {
-                let Some((seq, sent)) = decode_probe(&frame) else {
-                    r.other += 1;
-                    return;
-                };
-                let Some(i) = seq.checked_sub(job.seq_start).map(|i| i as usize) else {
-                    r.stale += 1;
-                    return;
-                };
-                if seen.len() <= i / 64 {
-                    seen.resize(i / 64 + 1, 0);
-                }
-                let bit = 1u64 << (i % 64);
-                if seen[i / 64] & bit != 0 {
-                    r.duplicates += 1;
-                    return;
-                }
-                seen[i / 64] |= bit;
-                r.distinct += 1;
-                if highest.is_some_and(|h| seq < h) {
-                    r.reordered += 1;
-                } else {
-                    highest = Some(seq);
-                }
-                r.latencies
-                    .push(now.saturating_sub(sent).min(u32::MAX as u64) as u32);
-            });
-            // A datagram holds whole frames: nothing carries over to the next one.
-            parser.clear();
+        if job.sock.is_stream() {
+            if n == 1 {
+                tally.feed(&bufs.as_flattened()[..lens[0]], now, false);
+            }
+        } else {
+            for (buf, &len) in bufs.iter().zip(&lens[..n]) {
+                tally.feed(&buf[..len], now, true);
+            }
         }
-        job.progress.store(r.distinct, Ordering::Relaxed);
-        if job.reading == Reading::Lazy && n < sys::BATCH {
+        job.progress.store(tally.report.distinct, Ordering::Relaxed);
+        if job.reading == Reading::Lazy && !full {
             thread::sleep(LAZY_POLL);
         }
     }
-    r.rejected = parser.stats().rejected();
-    r
+    tally.finish()
+}
+
+/// [`Reading::Sweep`]: reads every one of `socks` (non-blocking) until it is empty,
+/// sleeps [`SWEEP_POLL`], again until `stop` is set.
+fn sweep(
+    socks: &[Sock],
+    seq_start: u32,
+    base: Instant,
+    stop: &AtomicBool,
+    progress: &[AtomicU64],
+) -> Vec<SinkReport> {
+    let mut tallies: Vec<Tally> = socks.iter().map(|_| Tally::new(seq_start)).collect();
+    let mut buf = vec![0u8; STREAM_READ];
+    while !stop.load(Ordering::Relaxed) {
+        for ((sock, tally), progress) in socks.iter().zip(&mut tallies).zip(progress) {
+            loop {
+                match sock.recv(&mut buf) {
+                    Ok(n) => {
+                        let now = ns_since(base);
+                        tally.feed(&buf[..n], now, !sock.is_stream());
+                        if sock.is_stream() && n < buf.len() {
+                            break;
+                        }
+                    }
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                    Err(_) => {
+                        tally.report.errors += 1;
+                        break;
+                    }
+                }
+            }
+            progress.store(tally.report.distinct, Ordering::Relaxed);
+        }
+        thread::sleep(SWEEP_POLL);
+    }
+    tallies.into_iter().map(Tally::finish).collect()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -512,15 +699,26 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
 /// configuration, or the minimal relay ([`relay_serve`]).
 struct Forwarder {
     child: Child,
+    /// Its UDP port.
     addr: SocketAddrV4,
+    /// Its TCP server, if it has one.
+    tcp_addr: Option<SocketAddrV4>,
     dir: PathBuf,
 }
 
 impl Forwarder {
     /// Starts the mavtables binary `exe` (router mode) or this benchmark's minimal relay
     /// (the other modes) on a free port of 127.0.0.1, output to a log file in a temp dir.
-    fn start(exe: &Path, mode: Mode) -> Result<Forwarder, String> {
+    /// With `tcp` the router also has a TCP server (`tcp { port P; address 127.0.0.1; }`)
+    /// on another free port.
+    fn start(exe: &Path, mode: Mode, tcp: bool) -> Result<Forwarder, String> {
         let port = free_port().map_err(|e| format!("no free port: {e}"))?;
+        let tcp_port = if tcp && mode == Mode::Router {
+            let l = TcpListener::bind("127.0.0.1:0").map_err(|e| format!("no free port: {e}"))?;
+            Some(l.local_addr().map_err(|e| e.to_string())?.port())
+        } else {
+            None
+        };
         let dir =
             std::env::temp_dir().join(format!("mavtables-bench-{}-{port}", std::process::id()));
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -534,8 +732,11 @@ impl Forwarder {
             c
         } else {
             let config = dir.join("router.conf");
+            let tcp_block = tcp_port.map_or(String::new(), |p| {
+                format!("tcp {{\n    port {p};\n    address 127.0.0.1;\n}}\n")
+            });
             let text = format!(
-                "udp {{\n    port {port};\n    address 127.0.0.1;\n}}\n\
+                "udp {{\n    port {port};\n    address 127.0.0.1;\n}}\n{tcp_block}\
                  default_action accept;\nchain default {{\n    accept;\n}}\n"
             );
             std::fs::write(&config, text).map_err(|e| format!("{}: {e}", config.display()))?;
@@ -553,6 +754,7 @@ impl Forwarder {
         Ok(Forwarder {
             child,
             addr: SocketAddrV4::new(Ipv4Addr::LOCALHOST, port),
+            tcp_addr: tcp_port.map(|p| SocketAddrV4::new(Ipv4Addr::LOCALHOST, p)),
             dir,
         })
     }
@@ -566,29 +768,56 @@ impl Forwarder {
     }
 
     /// Makes every sink known to the router and waits (at most 5 s) until a frame from
-    /// the generator reaches each of them.
-    fn handshake(&mut self, gen_sock: &UdpSocket, sinks: &[UdpSocket]) -> Result<(), String> {
+    /// the generator (over `gen_tcp` if given, else a datagram from `gen_sock`) reaches
+    /// each of them. A TCP sink announces itself once, a UDP sink every 100 ms.
+    fn handshake(
+        &mut self,
+        gen_sock: &UdpSocket,
+        gen_tcp: Option<&TcpStream>,
+        sinks: &[Sock],
+    ) -> Result<(), String> {
         let start = Instant::now();
         let mut reached = vec![false; sinks.len()];
+        let mut parsers: Vec<Parser> = sinks.iter().map(|_| Parser::new()).collect();
         let mut probe = Vec::new();
         encode_probe(0, 0, &mut probe);
-        let mut buf = [0u8; DGRAM_MAX];
+        let mut buf = vec![0u8; STREAM_READ];
+        for s in sinks {
+            s.set_nonblocking(true).map_err(|e| format!("sink: {e}"))?;
+        }
+        let mut first = true;
         while start.elapsed() < Duration::from_secs(5) {
             if let Some(why) = self.exited() {
                 return Err(why);
             }
             for (i, s) in sinks.iter().enumerate() {
-                let _ = s.send_to(&heartbeat(SINK_SYSTEM + i as u8), self.addr);
+                if first || !s.is_stream() {
+                    let _ = s.announce(&heartbeat(SINK_SYSTEM + i as u8), self.addr);
+                }
             }
+            first = false;
             thread::sleep(Duration::from_millis(20));
-            let _ = gen_sock.send_to(&probe, self.addr);
+            match gen_tcp {
+                Some(stream) => {
+                    write_stream(stream, &probe, Instant::now() + Duration::from_secs(1));
+                }
+                None => {
+                    let _ = gen_sock.send_to(&probe, self.addr);
+                }
+            }
             thread::sleep(Duration::from_millis(80));
-            for (s, ok) in sinks.iter().zip(&mut reached) {
+            for ((s, ok), parser) in sinks.iter().zip(&mut reached).zip(&mut parsers) {
                 while let Ok(n) = s.recv(&mut buf) {
-                    Parser::new().feed(&buf[..n], |f| *ok |= decode_probe(&f).is_some());
+                    parser.feed(&buf[..n], |f| *ok |= decode_probe(&f).is_some());
+                    if !s.is_stream() {
+                        parser.clear();
+                    }
                 }
             }
             if reached.iter().all(|&r| r) {
+                for s in sinks {
+                    s.set_nonblocking(false).map_err(|e| format!("sink: {e}"))?;
+                }
                 return Ok(());
             }
         }
@@ -713,10 +942,69 @@ enum Mode {
     Router,
 }
 
+/// A transport between the benchmark and the router.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Transport {
+    Udp,
+    Tcp,
+}
+
+/// How the generator and the sinks reach the router (router mode): over its UDP port,
+/// or as clients of its TCP server, where every connection is a link of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Legs {
+    generator: Transport,
+    sinks: Transport,
+}
+
+impl Legs {
+    const UDP: Legs = Legs {
+        generator: Transport::Udp,
+        sinks: Transport::Udp,
+    };
+
+    fn uses_tcp(self) -> bool {
+        self.generator == Transport::Tcp || self.sinks == Transport::Tcp
+    }
+
+    /// `TCP→UDP` and the like.
+    fn name(self) -> String {
+        format!("{:?}→{:?}", self.generator, self.sinks).to_uppercase()
+    }
+}
+
+/// Connects to the router's TCP server (retrying for up to 5 s while it starts), with
+/// `TCP_NODELAY` (else Nagle's algorithm would hold back each frame written while the
+/// previous one is unacknowledged) and 20 ms / 100 ms read / write timeouts.
+fn connect(router: &mut Forwarder) -> Result<TcpStream, String> {
+    let to = router.tcp_addr.ok_or("the router has no TCP server")?;
+    let start = Instant::now();
+    let stream = loop {
+        match TcpStream::connect(to) {
+            Ok(s) => break s,
+            Err(e) if start.elapsed() > Duration::from_secs(5) => {
+                return Err(router.exited().unwrap_or(format!("connect to {to}: {e}")));
+            }
+            Err(_) => thread::sleep(Duration::from_millis(20)),
+        }
+    };
+    let io = |e: io::Error| format!("TCP socket: {e}");
+    stream.set_nodelay(true).map_err(io)?;
+    stream
+        .set_read_timeout(Some(Duration::from_millis(20)))
+        .map_err(io)?;
+    stream
+        .set_write_timeout(Some(Duration::from_millis(100)))
+        .map_err(io)?;
+    Ok(stream)
+}
+
 /// The sockets (and router) of one mode and number of receivers, reused by its trials.
 struct Setup {
     gen_sock: UdpSocket,
-    sinks: Vec<UdpSocket>,
+    /// The generator's connection, when it writes to the router's TCP server.
+    gen_tcp: Option<TcpStream>,
+    sinks: Vec<Sock>,
     dests: Vec<SocketAddrV4>,
     router: Option<Forwarder>,
     next_seq: u32,
@@ -797,37 +1085,63 @@ impl Setup {
     /// Binds the generator and `receivers` sinks; in router mode also starts the router
     /// and waits until it forwards to every sink.
     fn new(mode: Mode, receivers: usize, exe: Option<&Path>) -> Result<Setup, String> {
+        Setup::open(mode, Legs::UDP, receivers, exe)
+    }
+
+    /// As [`Setup::new`], with the generator and the sinks on the router's UDP port or
+    /// TCP server as `legs` say (router mode only).
+    fn open(mode: Mode, legs: Legs, receivers: usize, exe: Option<&Path>) -> Result<Setup, String> {
+        if legs.uses_tcp() && mode != Mode::Router {
+            return Err("TCP only in router mode".into());
+        }
         let io = |e: io::Error| format!("socket: {e}");
         let gen_sock = UdpSocket::bind("127.0.0.1:0").map_err(io)?;
         gen_sock
             .set_write_timeout(Some(Duration::from_millis(100)))
             .map_err(io)?;
         let mut sinks = Vec::new();
-        for _ in 0..receivers {
+        // TCP sinks connect once the router is up.
+        for _ in 0..if legs.sinks == Transport::Udp {
+            receivers
+        } else {
+            0
+        } {
             let s = UdpSocket::bind("127.0.0.1:0").map_err(io)?;
             s.set_read_timeout(Some(Duration::from_millis(20)))
                 .map_err(io)?;
             // Large enough that the sink is never what drops frames; best effort.
             let _ = sys::set_recv_buffer(s.as_raw_fd(), 4 << 20);
-            sinks.push(s);
+            sinks.push(Sock::Udp(s));
         }
         let mut router = None;
+        let mut gen_tcp = None;
         let dests = match mode {
             Mode::Direct => sinks
                 .iter()
-                .map(|s| match s.local_addr() {
-                    Ok(std::net::SocketAddr::V4(a)) => Ok(a),
-                    other => Err(format!("sink address: {other:?}")),
+                .map(|s| match s {
+                    Sock::Udp(s) => match s.local_addr() {
+                        Ok(SocketAddr::V4(a)) => Ok(a),
+                        other => Err(format!("sink address: {other:?}")),
+                    },
+                    Sock::Tcp(_) => Err("no TCP sinks in direct mode".into()),
                 })
                 .collect::<Result<Vec<_>, _>>()?,
             Mode::Relay | Mode::Router | Mode::ReceiveOnly => {
                 let exe = exe.ok_or("no router binary")?;
-                let mut r = Forwarder::start(exe, mode)?;
+                let mut r = Forwarder::start(exe, mode, legs.uses_tcp())?;
+                if legs.sinks == Transport::Tcp {
+                    for _ in 0..receivers {
+                        sinks.push(Sock::Tcp(connect(&mut r)?));
+                    }
+                }
+                if legs.generator == Transport::Tcp {
+                    gen_tcp = Some(connect(&mut r)?);
+                }
                 if mode == Mode::ReceiveOnly {
                     // Nothing to wait for but the socket.
                     thread::sleep(Duration::from_millis(100));
                 } else {
-                    r.handshake(&gen_sock, &sinks)?;
+                    r.handshake(&gen_sock, gen_tcp.as_ref(), &sinks)?;
                 }
                 let addr = r.addr;
                 router = Some(r);
@@ -836,6 +1150,7 @@ impl Setup {
         };
         Ok(Setup {
             gen_sock,
+            gen_tcp,
             sinks,
             dests,
             router,
@@ -859,12 +1174,21 @@ impl Setup {
         let announce = self.router.as_ref().map(|r| r.addr);
         let router_before = self.router.as_ref().and_then(Forwarder::cpu);
         let self_before = cpu_time(std::process::id());
+        for sink in &self.sinks {
+            let _ = sink.set_nonblocking(reading == Reading::Sweep);
+        }
         let (generator, sinks) = thread::scope(|s| {
+            let sweeper = (reading == Reading::Sweep).then(|| {
+                let (socks, stop, progress) = (&self.sinks, &stop, &progress);
+                let base = self.base;
+                s.spawn(move || sweep(socks, seq_start, base, stop, progress))
+            });
             let handles: Vec<_> = self
                 .sinks
                 .iter()
                 .zip(&progress)
                 .enumerate()
+                .filter(|_| reading != Reading::Sweep)
                 .map(|(i, (sock, progress))| {
                     let job = SinkJob {
                         sock,
@@ -881,6 +1205,7 @@ impl Setup {
             let generator = generate(
                 &self.gen_sock,
                 &self.dests,
+                self.gen_tcp.as_ref(),
                 rate,
                 duration,
                 seq_start,
@@ -902,10 +1227,13 @@ impl Setup {
                 thread::sleep(Duration::from_millis(5));
             }
             stop.store(true, Ordering::Relaxed);
-            let sinks: Vec<SinkReport> = handles
+            let mut sinks: Vec<SinkReport> = handles
                 .into_iter()
                 .map(|h| h.join().unwrap_or_default())
                 .collect();
+            if let Some(h) = sweeper {
+                sinks = h.join().unwrap_or_default();
+            }
             (generator, sinks)
         });
         self.next_seq = seq_start + generator.sent as u32 + 1;
@@ -929,6 +1257,10 @@ struct Plan {
     latency_rounds: usize,
     latency_step: Duration,
     cpu_step: Duration,
+    /// Interleaved rounds of the TCP latency and fan-out runs.
+    tcp_rounds: usize,
+    /// One round of the TCP fan-out.
+    fanout_step: Duration,
 }
 
 /// Figures of one mode and number of receivers.
@@ -965,17 +1297,12 @@ fn per_frame_us(cpu: Option<Duration>, frames: u64) -> Option<f64> {
     Some(cpu?.as_secs_f64() * 1e6 / frames.max(1) as f64)
 }
 
-/// Measures one mode with `receivers` sinks, printing progress as it goes.
-fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row {
-    let mut row = Row::default();
-    let mut setup = match Setup::new(mode, receivers, exe) {
-        Ok(s) => s,
-        Err(why) => {
-            row.unavailable = Some(why);
-            return row;
-        }
-    };
-    let label = format!("{mode:?} x{receivers}").to_lowercase();
+/// Climbs [`LADDER`] until a step loses frames twice or the generator falls behind its
+/// rate by more than 5% (for a TCP generator, also because the router does not read
+/// fast enough), printing a line per step; sets `row.zero_loss` and `row.stop`. Returns
+/// the forwarder's CPU per frame (µs) at each zero-loss step.
+fn ladder(setup: &mut Setup, label: &str, plan: &Plan, row: &mut Row) -> Vec<(f64, Option<f64>)> {
+    let mut cpu_at = Vec::new();
     // Highest rate with zero loss: a step with loss is tried once more (noisy machine).
     row.stop = "end of ladder".into();
     for &rate in &LADDER {
@@ -997,8 +1324,17 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
             t.sink_errors()
         );
         if !t.on_rate() {
+            let writes = if setup.gen_tcp.is_some() {
+                format!(
+                    ", {:.0}% of the time in write",
+                    100.0 * t.generator.in_write.as_secs_f64()
+                        / t.generator.elapsed.as_secs_f64().max(1e-9)
+                )
+            } else {
+                String::new()
+            };
             row.stop = format!(
-                "{}/s not reached: generator at most {}/s",
+                "{}/s not reached: generator at most {}/s{writes}",
                 fmt_rate(rate),
                 fmt_rate(t.achieved())
             );
@@ -1009,7 +1345,23 @@ fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row
             break;
         }
         row.zero_loss = Some(rate);
+        cpu_at.push((rate, per_frame_us(t.router_cpu, t.generator.sent)));
     }
+    cpu_at
+}
+
+/// Measures one mode with `receivers` sinks, printing progress as it goes.
+fn measure(mode: Mode, receivers: usize, exe: Option<&Path>, plan: &Plan) -> Row {
+    let mut row = Row::default();
+    let mut setup = match Setup::new(mode, receivers, exe) {
+        Ok(s) => s,
+        Err(why) => {
+            row.unavailable = Some(why);
+            return row;
+        }
+    };
+    let label = format!("{mode:?} x{receivers}").to_lowercase();
+    ladder(&mut setup, &label, plan, &mut row);
     if let Some(why) = setup.router.as_mut().and_then(Forwarder::exited) {
         row.stop = format!("{} — then {why}", row.stop);
         return row;
@@ -1101,6 +1453,221 @@ fn latency_only(exe: &Path, plan: &Plan) {
             format!("{mode:?}").to_lowercase()
         );
     }
+}
+
+/// The three ways through the router that `--tcp` compares, 1 receiver each.
+const TCP_LEGS: [Legs; 3] = [
+    Legs::UDP,
+    Legs {
+        generator: Transport::Tcp,
+        sinks: Transport::Tcp,
+    },
+    Legs {
+        generator: Transport::Tcp,
+        sinks: Transport::Udp,
+    },
+];
+/// One latency round of one path.
+struct LatencyRound {
+    /// p50, p99, p99.9, µs.
+    q_us: [f64; 3],
+    /// The router's CPU per frame, µs.
+    cpu_us: Option<f64>,
+    lost: u64,
+}
+
+/// Most a TCP path's p50 latency may exceed UDP→UDP's (the issue's target).
+const TCP_P50_TARGET: f64 = 1.2;
+
+/// `--tcp` (also part of the full run): UDP→UDP, TCP→TCP and TCP→UDP through a router
+/// each (UDP port and TCP server, 1 receiver): the ladder of each, one after the other,
+/// then `plan.tcp_rounds` interleaved latency rounds at 10k frames/s, and each TCP path's
+/// p50 ÷ UDP→UDP's p50 of the same round. Prints a Markdown table. Without `ladders`
+/// (`--tcp --latency`) only the latency rounds.
+fn tcp_paths(exe: &Path, plan: &Plan, ladders: bool, out: &mut impl Write) -> io::Result<()> {
+    let mut setups = Vec::new();
+    for legs in TCP_LEGS {
+        match Setup::open(Mode::Router, legs, 1, Some(exe)) {
+            Ok(s) => setups.push((legs, s, Row::default())),
+            Err(why) => println!("  {}: unavailable: {why}", legs.name()),
+        }
+    }
+    let mut cpu_50k = Vec::new();
+    for (legs, setup, row) in setups.iter_mut().filter(|_| ladders) {
+        let steps = ladder(setup, &legs.name(), plan, row);
+        cpu_50k.push(steps.iter().find(|s| s.0 == CPU_RATE).and_then(|s| s.1));
+    }
+    // Per setup: p50, p99, p99.9 (µs), router CPU/frame (µs) and loss of each round.
+    let mut rounds: Vec<Vec<LatencyRound>> = setups.iter().map(|_| vec![]).collect();
+    for _ in 0..plan.tcp_rounds {
+        for ((legs, setup, _), r) in setups.iter_mut().zip(&mut rounds) {
+            let t = setup.trial(
+                Some(LATENCY_RATE),
+                plan.latency_step,
+                SendMode::Batched,
+                Reading::Eager,
+            );
+            let l = t.latency(&[0.5, 0.99, 0.999]);
+            let cpu = per_frame_us(t.router_cpu, t.generator.sent);
+            println!(
+                "  {:<8} @{}: p50 {:>5} p99 {:>6} p99.9 {:>7} ns, lost {}, router CPU/frame {} µs",
+                legs.name(),
+                fmt_rate(LATENCY_RATE),
+                l[0],
+                l[1],
+                l[2],
+                t.lost(),
+                cpu.map_or("?".into(), |c| format!("{c:.2}")),
+            );
+            r.push(LatencyRound {
+                q_us: [l[0], l[1], l[2]].map(|x| x as f64 / 1e3),
+                cpu_us: cpu,
+                lost: t.lost(),
+            });
+        }
+    }
+    let udp = setups.iter().position(|(l, ..)| *l == Legs::UDP);
+    writeln!(
+        out,
+        "\n| path | highest zero-loss rate (then) | router CPU/frame @{} | latency p50 / p99 / p99.9 @{} | router CPU/frame @{} | p50 ÷ UDP→UDP p50 |",
+        fmt_rate(CPU_RATE),
+        fmt_rate(LATENCY_RATE),
+        fmt_rate(LATENCY_RATE),
+    )?;
+    writeln!(out, "|---|---|---:|---|---:|---|")?;
+    let mut verdicts = Vec::new();
+    for (i, (legs, _, row)) in setups.iter().enumerate() {
+        let r = &rounds[i];
+        let q = |k: usize| median(r.iter().map(|x| x.q_us[k]).collect());
+        let cpu = median(r.iter().filter_map(|x| x.cpu_us).collect());
+        let lost: u64 = r.iter().map(|x| x.lost).sum();
+        let ratio = match udp {
+            Some(u) if u != i => {
+                // Round by round: both measured within seconds of each other.
+                let per_round: Vec<f64> = r
+                    .iter()
+                    .zip(&rounds[u])
+                    .map(|(t, u)| t.q_us[0] / u.q_us[0])
+                    .collect();
+                let lo = per_round.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = per_round.iter().copied().fold(0.0, f64::max);
+                let m = median(per_round);
+                verdicts.push(format!(
+                    "{} p50 is {m:.2}× UDP→UDP's ({}within {TCP_P50_TARGET}×)",
+                    legs.name(),
+                    if m <= TCP_P50_TARGET { "" } else { "not " }
+                ));
+                format!("{m:.2}× ({lo:.2}–{hi:.2}×)")
+            }
+            _ => "—".into(),
+        };
+        writeln!(
+            out,
+            "| {} | {} | {} | {:.0} / {:.0} / {:.0} µs{} | {} | {ratio} |",
+            legs.name(),
+            match (ladders, row.zero_loss) {
+                (false, _) => "—".into(),
+                (true, None) => format!("none ({})", row.stop),
+                (true, Some(r)) => format!("{}/s ({})", fmt_rate(r), row.stop),
+            },
+            cpu_50k
+                .get(i)
+                .copied()
+                .flatten()
+                .map_or("—".into(), |c| format!("{c:.2} µs")),
+            q(0),
+            q(1),
+            q(2),
+            if lost > 0 {
+                format!(" ({lost} lost)")
+            } else {
+                String::new()
+            },
+            if cpu.is_nan() {
+                "—".into()
+            } else {
+                format!("{cpu:.2} µs")
+            },
+        )?;
+    }
+    writeln!(
+        out,
+        "\nlatency: medians of {} interleaved rounds of {:.1} s; ratio: median (range) of the rounds' ratios. {}",
+        plan.tcp_rounds,
+        plan.latency_step.as_secs_f64(),
+        verdicts.join("; ")
+    )
+}
+
+/// Clients of the router's TCP server in the `--tcp-fanout` run.
+const FANOUT_CLIENTS: usize = 100;
+/// Rate of the broadcast stream every fan-out client receives, frames/s.
+const FANOUT_RATE: f64 = 1e3;
+
+/// `--tcp-fanout` (also part of the full run): [`FANOUT_CLIENTS`] clients of the router's
+/// TCP server, each announced with a HEARTBEAT, receive a broadcast stream of
+/// [`FANOUT_RATE`] frames/s from a TCP generator (a client of the same server) and,
+/// with another router, from a UDP generator; `plan.tcp_rounds` interleaved rounds.
+/// One thread reads all clients ([`Reading::Sweep`]). Prints a Markdown table of the
+/// router's CPU per delivered frame and the loss.
+fn tcp_fanout(exe: &Path, plan: &Plan, out: &mut impl Write) -> io::Result<()> {
+    let mut setups = Vec::new();
+    for generator in [Transport::Tcp, Transport::Udp] {
+        let legs = Legs {
+            generator,
+            sinks: Transport::Tcp,
+        };
+        match Setup::open(Mode::Router, legs, FANOUT_CLIENTS, Some(exe)) {
+            Ok(s) => setups.push((legs, s, vec![], 0u64, 0u64)),
+            Err(why) => println!("  fan-out {}: unavailable: {why}", legs.name()),
+        }
+    }
+    for _ in 0..plan.tcp_rounds {
+        for (legs, setup, cpu, lost, expected) in &mut setups {
+            let t = setup.trial(
+                Some(FANOUT_RATE),
+                plan.fanout_step,
+                SendMode::Batched,
+                Reading::Sweep,
+            );
+            let delivered: u64 = t.sinks.iter().map(|s| s.distinct).sum();
+            let us = per_frame_us(t.router_cpu, delivered);
+            println!(
+                "  fan-out {} x{FANOUT_CLIENTS} @{}/s: sent {}, delivered {delivered}, lost {} ({:.3}%), router CPU/delivered frame {} µs",
+                legs.name(),
+                fmt_rate(FANOUT_RATE),
+                t.generator.sent,
+                t.lost(),
+                t.loss_percent(),
+                us.map_or("?".into(), |c| format!("{c:.2}")),
+            );
+            cpu.extend(us);
+            *lost += t.lost();
+            *expected += t.generator.sent * FANOUT_CLIENTS as u64;
+        }
+    }
+    writeln!(
+        out,
+        "\n| generator → {FANOUT_CLIENTS} TCP clients @{}/s each | router CPU per delivered frame (median; range) | frames lost |",
+        fmt_rate(FANOUT_RATE)
+    )?;
+    writeln!(out, "|---|---:|---:|")?;
+    for (legs, _, cpu, lost, expected) in &setups {
+        let lo = cpu.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = cpu.iter().copied().fold(0.0, f64::max);
+        writeln!(
+            out,
+            "| {:?} generator | {:.2} µs ({lo:.2}–{hi:.2}) | {lost} of {expected} |",
+            legs.generator,
+            median(cpu.clone()),
+        )?;
+    }
+    writeln!(
+        out,
+        "\n{} interleaved rounds of {:.1} s each",
+        plan.tcp_rounds,
+        plan.fanout_step.as_secs_f64()
+    )
 }
 
 /// `--cpu`: only the CPU per frame of the minimal relay and of the router at 50k
@@ -1256,6 +1823,17 @@ fn print_row(out: &mut impl Write, mode: Mode, receivers: usize, row: &Row) -> i
 
 /// `cargo test`: a ~3 s check that the generator, sinks, accounting and relay work.
 fn smoke() {
+    // A TCP sink's accounting: frames cut anywhere between reads count once each.
+    let mut stream = Vec::new();
+    for seq in 1..=3 {
+        encode_probe(seq, 0, &mut stream);
+    }
+    let mut tally = Tally::new(1);
+    for piece in stream.chunks(7) {
+        tally.feed(piece, 1, false);
+    }
+    let r = tally.finish();
+    assert_eq!((r.distinct, r.rejected, r.other), (3, 0, 0), "stream tally");
     let mut setup = Setup::new(Mode::Direct, 1, None).expect("direct setup");
     let t = setup.trial(
         Some(20e3),
@@ -1342,6 +1920,8 @@ fn main() {
             latency_rounds: 1,
             latency_step: Duration::from_millis(500),
             cpu_step: Duration::from_millis(500),
+            tcp_rounds: 1,
+            fanout_step: Duration::from_millis(500),
         }
     } else {
         Plan {
@@ -1349,6 +1929,8 @@ fn main() {
             latency_rounds: 3,
             latency_step: Duration::from_secs(1),
             cpu_step: Duration::from_secs(2),
+            tcp_rounds: 5,
+            fanout_step: Duration::from_secs(2),
         }
     };
     // Cargo sets this for benches; `MAVTABLES_BENCH_ROUTER` points at another build.
@@ -1362,6 +1944,20 @@ fn main() {
         if quick { "0.5 s" } else { "2 s" },
         if quick { " (--quick)" } else { "" }
     );
+    let tcp = args.iter().any(|a| a == "--tcp");
+    let fanout = args.iter().any(|a| a == "--tcp-fanout");
+    if tcp || fanout {
+        let mut out = io::stdout().lock();
+        if tcp {
+            let ladders = !args.iter().any(|a| a == "--latency");
+            let _ = tcp_paths(&exe, &plan, ladders, &mut out);
+        }
+        if fanout {
+            let _ = tcp_fanout(&exe, &plan, &mut out);
+        }
+        let _ = writeln!(out, "total time {:.0} s", started.elapsed().as_secs_f64());
+        return;
+    }
     let gain = batching_gain(
         if quick { 1 } else { 3 },
         Duration::from_millis(if quick { 300 } else { 700 }),
@@ -1413,5 +2009,8 @@ fn main() {
             let _ = writeln!(out, "\nunpaced sending: unavailable: {why}");
         }
     }
+    let _ = writeln!(out, "\nTCP forwarding (`--tcp`, `--tcp-fanout`):");
+    let _ = tcp_paths(&exe, &plan, true, &mut out);
+    let _ = tcp_fanout(&exe, &plan, &mut out);
     let _ = writeln!(out, "total time {:.0} s", started.elapsed().as_secs_f64());
 }
