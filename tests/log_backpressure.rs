@@ -11,12 +11,12 @@ mod common;
 use std::collections::HashSet;
 use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
-use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
+use std::process::{ChildStdout, Command, Stdio};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use common::router::{Lines, Scratch, free_udp_port, udp_port_bound};
+use common::router::{Guard, Lines, Scratch, free_udp_port, udp_port_bound};
 use mavtables::wire::encode::{Header, encode_v2};
 
 const BIN: &str = env!("CARGO_BIN_EXE_mavtables");
@@ -29,39 +29,6 @@ const BURST: usize = 100;
 const ATTITUDE: u32 = 30;
 const ATTITUDE_LEN: usize = 28;
 const HEARTBEAT: u32 = 0;
-
-/// The router process, killed when dropped (a failing assertion leaves nothing behind).
-struct Running(Option<Child>);
-
-impl Running {
-    fn child(&mut self) -> &mut Child {
-        self.0.as_mut().expect("router already waited for")
-    }
-
-    /// Waits up to `timeout` for the exit.
-    fn wait(&mut self, timeout: Duration) -> Option<ExitStatus> {
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Ok(Some(status)) = self.child().try_wait() {
-                self.0 = None;
-                return Some(status);
-            }
-            if Instant::now() >= deadline {
-                return None;
-            }
-            thread::sleep(Duration::from_millis(5));
-        }
-    }
-}
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.0.take() {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
 
 /// Reads standard output line by line up to the first line containing `pattern`, then
 /// stops reading until told to go on; every line read is handed over.
@@ -194,7 +161,7 @@ fn a_stuck_log_reader_does_not_stall_routing() {
         .expect("spawn mavtables");
     let stdout = child.stdout.take().expect("stdout");
     let mut stderr = Lines::new(child.stderr.take().expect("stderr"), "router stderr");
-    let mut router = Running(Some(child));
+    let mut router = Guard(Some(child));
     let bound_by = Instant::now() + Duration::from_secs(10);
     while !udp_port_bound(port) {
         assert!(Instant::now() < bound_by, "port {port} never bound");

@@ -134,15 +134,16 @@ impl Lines {
 }
 
 /// A child process that is killed when dropped.
-struct Guard(Option<Child>);
+pub struct Guard(pub Option<Child>);
 
 impl Guard {
-    fn child(&mut self) -> &mut Child {
+    /// The child (panics if it was already waited for).
+    pub fn child(&mut self) -> &mut Child {
         self.0.as_mut().expect("child")
     }
 
     /// Waits up to `timeout` for the child to exit.
-    fn wait(&mut self, timeout: Duration) -> Option<ExitStatus> {
+    pub fn wait(&mut self, timeout: Duration) -> Option<ExitStatus> {
         let deadline = Instant::now() + timeout;
         loop {
             self.0.as_ref()?;
