@@ -26,5 +26,6 @@ pub mod dialect;
 pub mod filter;
 pub mod io;
 pub mod routing;
+pub mod signing;
 pub mod utc;
 pub mod wire;
