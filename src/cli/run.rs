@@ -7,6 +7,8 @@ use std::io::Write;
 use std::path::Path;
 
 /// What `main` should do after the command line has been handled.
+// Made once per process, so the size of `Run` beside `Exit` costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub enum Outcome {
     /// Exit now with this status (help, version, `--ast`, `--check`, or an error).

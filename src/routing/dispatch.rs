@@ -24,6 +24,8 @@ pub enum Decision {
 /// filtered for the broadcast address `0.0`. `signed` tells the filter whether the packet
 /// arrived with an accepted signature.
 #[inline]
+// The packet's facts as plain values, as the per-link hot loop has them at hand.
+#[allow(clippy::too_many_arguments)]
 pub fn decide(
     filter: &mut Filter,
     pool: &AddressPool,
