@@ -316,8 +316,10 @@ impl Runtime {
 
 /// Runs the router for `config` with log level `loglevel` until SIGINT or SIGTERM.
 /// Returns the process exit status: 0 after a clean shutdown, 1 if it could not start
-/// (a UDP port that cannot be bound; serial devices are retried instead).
-pub fn run(config: &Config, loglevel: u8) -> u8 {
+/// (a UDP port that cannot be bound; serial devices are retried instead). `keys` holds
+/// the signing key of each of `config.interfaces`, in order.
+pub fn run(config: &Config, keys: &[Option<crate::signing::SigningKey>], loglevel: u8) -> u8 {
+    let _ = keys;
     let status = match start(config, loglevel) {
         Ok(mut rt) => {
             let result = rt.run();

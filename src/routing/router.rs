@@ -244,6 +244,7 @@ impl Router {
                 message_id,
                 src,
                 target,
+                false,
             );
             match decision {
                 Decision::Silent => {}

@@ -7,4 +7,4 @@
 
 pub mod key;
 
-pub use key::SigningKey;
+pub use key::{KeyError, SigningKey};
