@@ -148,10 +148,10 @@ fn receive_until(
         }
         assert!(
             Instant::now() < deadline,
-            "the frame {} never came; got {} frames: {:#?}",
+            "the frame {} never came; got {} frames, the first 10: {:#?}",
             hex(last),
             got.len(),
-            got.iter().map(|f| hex(f)).collect::<Vec<_>>()
+            got.iter().take(10).map(|f| hex(f)).collect::<Vec<_>>()
         );
         if let Ok(n) = sock.recv(&mut buf) {
             let mut frames = Vec::new();
@@ -168,11 +168,28 @@ fn receive_until(
 }
 
 fn assert_same(got: &[Vec<u8>], want: &[Vec<u8>]) {
-    let show = |v: &[Vec<u8>]| v.iter().map(|f| hex(f)).collect::<Vec<_>>();
-    assert_eq!(
-        show(got),
-        show(want),
-        "the receiver must get exactly the valid frames, byte for byte"
+    if got == want {
+        return;
+    }
+    let show = |v: &[&Vec<u8>]| {
+        v.iter()
+            .take(10)
+            .map(|f| hex(f))
+            .collect::<Vec<_>>()
+            .join("\n  ")
+    };
+    let extra: Vec<&Vec<u8>> = got.iter().filter(|f| !want.contains(f)).collect();
+    let missing: Vec<&Vec<u8>> = want.iter().filter(|f| !got.contains(f)).collect();
+    panic!(
+        "the receiver must get exactly the valid frames, byte for byte, in order: got {} \
+         frames for {} valid; {} not valid (first 10):\n  {}\n{} valid ones missing \
+         (first 10):\n  {}",
+        got.len(),
+        want.len(),
+        extra.len(),
+        show(&extra),
+        missing.len(),
+        show(&missing)
     );
 }
 
@@ -569,29 +586,35 @@ fn flood_of_forgeries_costs_no_valid_frame_and_no_memory() {
     let replay = warm[50].clone();
     let flood = {
         let flooding = flooding.clone();
+        // Made beforehand, so that sending them is all the flood thread does.
+        let mut rng = Rng(7);
+        let mut other = key;
+        other[0] ^= 0xff;
+        let forgeries: Vec<Vec<u8>> = (0..40_000u64)
+            .map(|i| {
+                let r = rng.next();
+                let (link, sys, comp) = (r as u8, (r >> 8) as u8, (r >> 16) as u8);
+                let ts = now_ts() - MINUTE / 2 + (r >> 24) % MINUTE;
+                match i % 4 {
+                    0 => random_signature(
+                        &signed(&key, link, ts, sys, comp, 0, 30, &attitude_payload(1)),
+                        &mut rng,
+                    ),
+                    1 => replay.clone(),
+                    2 => signed(&other, link, ts, sys, comp, 0, 30, &attitude_payload(2)),
+                    _ => unsigned(sys, comp, 0, 30, &attitude_payload(3)),
+                }
+            })
+            .collect();
         thread::spawn(move || {
             let sock = UdpSocket::bind("127.0.0.1:0").expect("bind");
-            let mut rng = Rng(7);
-            let mut other = key;
-            other[0] ^= 0xff;
             let start = Instant::now();
             let mut sent = 0u64;
             while start.elapsed() < Duration::from_secs(3) {
                 // 100 frames a millisecond.
                 for _ in 0..100 {
-                    let r = rng.next();
-                    let (link, sys, comp) = (r as u8, (r >> 8) as u8, (r >> 16) as u8);
-                    let ts = now_ts() - MINUTE / 2 + (r >> 24) % MINUTE;
-                    let f = match sent % 4 {
-                        0 => random_signature(
-                            &signed(&key, link, ts, sys, comp, 0, 30, &attitude_payload(1)),
-                            &mut rng,
-                        ),
-                        1 => replay.clone(),
-                        2 => signed(&other, link, ts, sys, comp, 0, 30, &attitude_payload(2)),
-                        _ => unsigned(sys, comp, 0, 30, &attitude_payload(3)),
-                    };
-                    let _ = sock.send_to(&f, &a);
+                    let f = &forgeries[(sent % forgeries.len() as u64) as usize];
+                    let _ = sock.send_to(f, &a);
                     sent += 1;
                 }
                 let next = start + Duration::from_millis(sent / 100);
@@ -601,6 +624,31 @@ fn flood_of_forgeries_costs_no_valid_frame_and_no_memory() {
             sent
         })
     };
+    // The receiver reads all along, in a thread of its own, into a large buffer.
+    let rx = rig.rx.try_clone().expect("clone");
+    socket2::SockRef::from(&rx)
+        .set_recv_buffer_size(8 << 20)
+        .expect("SO_RCVBUF");
+    let end = signed(&key, 0, 0, 10, 1, 0, 30, &attitude_payload(u32::MAX));
+    let end_counter = end[10..14].to_vec();
+    let receiver = thread::spawn(move || {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let mut parser = Parser::new();
+        let mut got: Vec<Vec<u8>> = Vec::new();
+        let mut buf = [0u8; 65536];
+        while Instant::now() < deadline {
+            if got
+                .last()
+                .is_some_and(|f| f.len() > 14 && f[10..14] == end_counter[..])
+            {
+                break;
+            }
+            if let Ok(n) = rx.recv(&mut buf) {
+                parser.feed(&buf[..n], |f| got.push(f.as_bytes().to_vec()));
+            }
+        }
+        got
+    });
     let mut valid = Vec::new();
     let start = Instant::now();
     while flooding.load(Ordering::Relaxed) {
@@ -611,10 +659,19 @@ fn flood_of_forgeries_costs_no_valid_frame_and_no_memory() {
         thread::sleep(next.saturating_duration_since(Instant::now()));
     }
     let forged = flood.join().expect("flood");
-    let last = stream.next();
+    let last = signed(
+        &key,
+        0,
+        stream.next_ts,
+        10,
+        1,
+        0,
+        30,
+        &attitude_payload(u32::MAX),
+    );
     rig.send(&last);
     valid.push(last);
-    let got = rig.until(valid.last().expect("last"));
+    let got = receiver.join().expect("receiver");
     let rss = status_bytes(pid, "VmRSS");
     eprintln!(
         "{forged} forged frames in 3 s, {} valid; RSS {} KiB before, {} KiB after",
