@@ -506,20 +506,13 @@ pub fn signing_counts(report: &[String]) -> Vec<(u64, String)> {
     totals
 }
 
-/// The summed count of the signing counter whose words contain `what` (0 if none).
+/// The summed count of the signing counters one of whose words starts with `what`
+/// (`"bad"`, `"replay"`, `"window"`, `"unsigned"`, `"verified"`, `"signed"` — which is
+/// not `"unsigned dropped"`); 0 if none.
 pub fn count_of(counts: &[(u64, String)], what: &str) -> u64 {
     counts
         .iter()
-        .filter(|(_, w)| w.contains(what))
+        .filter(|(_, w)| w.split(' ').any(|word| word.starts_with(what)))
         .map(|(n, _)| n)
         .sum()
-}
-
-/// The counters report of the router's exit (the lines after the last heading).
-pub fn exit_report(stderr: &[String]) -> Vec<String> {
-    let start = stderr
-        .iter()
-        .rposition(|l| l.starts_with("mavtables counters:"))
-        .unwrap_or_else(|| panic!("no counters report at exit: {stderr:#?}"));
-    stderr[start + 1..].to_vec()
 }
