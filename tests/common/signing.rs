@@ -516,3 +516,12 @@ pub fn count_of(counts: &[(u64, String)], what: &str) -> u64 {
         .map(|(n, _)| n)
         .sum()
 }
+
+/// The counters report of the router's exit (the lines after the last heading).
+pub fn exit_report(stderr: &[String]) -> Vec<String> {
+    let start = stderr
+        .iter()
+        .rposition(|l| l.starts_with("mavtables counters:"))
+        .unwrap_or_else(|| panic!("no counters report at exit: {stderr:#?}"));
+    stderr[start + 1..].to_vec()
+}
