@@ -32,7 +32,7 @@ use mavtables::wire::Frame;
 use mavtables::wire::signing::verify;
 use signing::{
     Key, MINUTE, Py, SigPeer, count_of, exit_report, hex, hex_key_file, key_file, key_from,
-    mavproxy, now_ts, parse_stats, passphrase_key, signing_counts,
+    mavproxy, now_ts, parse_stats, passphrase_key, report_now, signing_counts,
 };
 
 const T: Duration = Duration::from_secs(10);
@@ -82,7 +82,7 @@ fn signed_pymavlink_peers_both_ways_byte_for_byte() {
          tcp {{ port {tport}; address 127.0.0.1; signing_key {kf}; }}\n\
          default_action accept;\n"
     );
-    let router = Router::start(&s, &config, 1);
+    let mut router = Router::start(&s, &config, 1);
     wait_tcp_listening(tport, T);
     let k = hex(&key);
     let mut vehicle = SigPeer::start(&args(&[
@@ -144,6 +144,17 @@ fn signed_pymavlink_peers_both_ways_byte_for_byte() {
     assert_eq!(got.hex, ack_sent, "the COMMAND_ACK, byte for byte");
     assert!(got.signed && got.check == "ok" && got.link == 9, "{got:?}");
 
+    let report = report_now(&mut router);
+    let counts = signing_counts(&report);
+    assert!(
+        count_of(&counts, "verified") >= 4,
+        "the router verified the 4 frames at least: {report:#?}"
+    );
+    assert_eq!(
+        count_of(&counts, "signed"),
+        0,
+        "the router signed nothing (all was signed): {report:#?}"
+    );
     for (who, peer) in [("vehicle", &mut vehicle), ("gcs", &mut gcs)] {
         let [sig, good, bad, unsigned, reject] = peer.stats();
         assert!(good >= 2 && sig == good, "{who}: {sig} signed, {good} good");
@@ -154,13 +165,7 @@ fn signed_pymavlink_peers_both_ways_byte_for_byte() {
         !all.iter().any(|l| l.starts_with("rejected")),
         "a peer refused a frame: {all:#?}"
     );
-    let stopped = router.stop();
-    let report = exit_report(&stopped.stderr);
-    let counts = signing_counts(&report);
-    assert!(
-        count_of(&counts, "verified") >= 4,
-        "the router verified the 4 frames at least: {report:#?}"
-    );
+    router.stop();
 }
 
 /// 2 and 4. The router signs for an unsigned peer: an unsigned pymavlink "companion" on
@@ -180,7 +185,7 @@ fn router_signs_for_an_unsigned_companion() {
          tcp {{ port {tport}; address 127.0.0.1; signing_key {kf}; }}\n\
          default_action accept;\n"
     );
-    let router = Router::start(&s, &config, 1);
+    let mut router = Router::start(&s, &config, 1);
     wait_tcp_listening(tport, T);
     let mut vehicle = SigPeer::start(&args(&[
         "--tcp",
@@ -252,14 +257,15 @@ fn router_signs_for_an_unsigned_companion() {
     let [sig, good, bad, unsigned, reject] = vehicle.stats();
     assert_eq!((sig, good), (2, 2), "the vehicle's accepted signed frames");
     assert_eq!((bad, unsigned, reject), (0, 0, 0));
+    // While the vehicle's TCP connection, whose link line has them, is still open.
+    let counts = signing_counts(&report_now(&mut router));
+    assert!(
+        count_of(&counts, "signed") >= 2 && count_of(&counts, "verified") >= 2,
+        "the router counted the frames it signed and verified: {counts:?}"
+    );
     vehicle.stop();
     companion.stop();
-    let stopped = router.stop();
-    let counts = signing_counts(&exit_report(&stopped.stderr));
-    assert!(
-        count_of(&counts, "signed") >= 2,
-        "the router counted the frames it signed: {counts:?}"
-    );
+    router.stop();
 }
 
 /// 4. Twenty unsigned frames of ten message types, from a plain socket on an interface
@@ -319,9 +325,12 @@ fn frames_the_router_signed_verify_in_pymavlink() {
     for n in 0..20u8 {
         let id = ids[n as usize % ids.len()];
         let info = mavtables::dialect::by_id(id).expect("known id");
-        let payload: Vec<u8> = (0..info.min_len)
+        let mut payload: Vec<u8> = (0..info.min_len)
             .map(|i| 0x41 + ((i as u8).wrapping_add(n) % 26))
             .collect();
+        if id == 76 {
+            payload[30..32].copy_from_slice(&[0, 0]); // COMMAND_LONG to everyone
+        }
         let f = signing::unsigned(61, 2, n, id, &payload);
         sock.send_to(&f, &to).expect("send");
         sent.push(f);
@@ -385,7 +394,7 @@ fn signing_vehicle(link: &[&str], key: &Key) -> Py {
 /// parameter of the signing vehicle and arms it; the vehicle refused nothing, so every
 /// frame of MAVProxy's that reached it was signed (the unsigned ones MAVProxy sent before
 /// `signing setup`, and the SETUP_SIGNING itself, were dropped by the router).
-fn signed_ground_station_session(router: Router, mut gcs: Py, mut vehicle: Py) {
+fn signed_ground_station_session(mut router: Router, mut gcs: Py, mut vehicle: Py) {
     let start = Instant::now();
     let limit = Duration::from_secs(60);
     let left = || limit.saturating_sub(start.elapsed());
@@ -405,6 +414,8 @@ fn signed_ground_station_session(router: Router, mut gcs: Py, mut vehicle: Py) {
     vehicle.wait_for("command 400 from 255.", left());
     gcs.wait_for("ARMED", left());
     eprintln!("signed session took {:?}", start.elapsed());
+    let counts = signing_counts(&report_now(&mut router));
+    assert!(count_of(&counts, "verified") > 300, "{counts:?}");
     let gcs_lines = gcs.finish(Duration::from_secs(10));
     let vehicle_lines = vehicle.finish(Duration::from_secs(10));
     let stats = vehicle_lines
@@ -422,9 +433,7 @@ fn signed_ground_station_session(router: Router, mut gcs: Py, mut vehicle: Py) {
         !gcs_lines.iter().any(|l| l.contains("Invalid signature")),
         "MAVProxy refused frames: {gcs_lines:#?}"
     );
-    let stopped = router.stop();
-    let counts = signing_counts(&exit_report(&stopped.stderr));
-    assert!(count_of(&counts, "verified") > 300, "{counts:?}");
+    router.stop();
 }
 
 /// 3. MAVProxy (`signing setup PASSPHRASE`) a UDP client of a router UDP server whose key

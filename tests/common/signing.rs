@@ -525,3 +525,19 @@ pub fn exit_report(stderr: &[String]) -> Vec<String> {
         .unwrap_or_else(|| panic!("no counters report at exit: {stderr:#?}"));
     stderr[start + 1..].to_vec()
 }
+
+/// The counters report now (SIGUSR1, then SIGUSR1 again so that the second heading marks
+/// where the first report ends): its lines, signing parts and all.
+pub fn report_now(router: &mut crate::common::router::Router) -> Vec<String> {
+    const HEADING: &str = "mavtables counters:";
+    router.signal(libc::SIGUSR1);
+    router.err.wait_for(HEADING, Duration::from_secs(10));
+    let from = router.err.seen.len();
+    router.signal(libc::SIGUSR1);
+    router.err.wait_for(HEADING, Duration::from_secs(10));
+    router.err.seen[from..router.err.seen.len() - 1]
+        .iter()
+        .filter(|l| l.starts_with("  "))
+        .cloned()
+        .collect()
+}
