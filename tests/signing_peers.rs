@@ -326,7 +326,7 @@ fn frames_the_router_signed_verify_in_pymavlink() {
         let id = ids[n as usize % ids.len()];
         let info = mavtables::dialect::by_id(id).expect("known id");
         let mut payload: Vec<u8> = (0..info.min_len)
-            .map(|i| 0x41 + ((i as u8).wrapping_add(n) % 26))
+            .map(|i| 0x41 + (i.wrapping_add(n) % 26))
             .collect();
         if id == 76 {
             payload[30..32].copy_from_slice(&[0, 0]); // COMMAND_LONG to everyone
