@@ -11,7 +11,10 @@ fn main() -> ExitCode {
     match run(args, &mut std::io::stdout(), &mut std::io::stderr()) {
         Outcome::Exit(code) => ExitCode::from(code),
         Outcome::Run {
-            config, options, ..
-        } => ExitCode::from(mavtables::io::run(&config, options.loglevel)),
+            config,
+            keys,
+            options,
+            ..
+        } => ExitCode::from(mavtables::io::run(&config, &keys, options.loglevel)),
     }
 }

@@ -388,6 +388,7 @@ fn endpoints_are_the_configuration_in_the_order_given() {
     assert!(out.is_empty() && err.is_empty(), "{out}{err}");
     let mavtables::cli::Outcome::Run {
         config,
+        keys,
         path,
         options,
     } = o
@@ -395,6 +396,8 @@ fn endpoints_are_the_configuration_in_the_order_given() {
         panic!("expected to run")
     };
     assert_eq!(path, mavtables::cli::ENDPOINTS_SOURCE);
+    // Endpoints have no signing keys: one `None` per link.
+    assert_eq!(keys, vec![None; 6]);
     assert_eq!(options.loglevel, 2);
     assert_eq!(config.default_action, DefaultAction::Accept);
     assert_eq!(config.chains.len(), 1);

@@ -36,6 +36,7 @@ fn defaults() {
                     max_peers: 128,
                     allow: vec![]
                 },
+                signing: None,
             }),
             Interface::Serial(SerialInterface {
                 device: "/dev/ttyUSB0".into(),
@@ -43,6 +44,7 @@ fn defaults() {
                 flow_control: false,
                 preload: vec![],
                 max_bitrate: None,
+                signing: None,
             }),
         ]
     );
@@ -76,6 +78,7 @@ fn values_last_wins_and_preloads_accumulate() {
             flow_control: true,
             preload: vec![Address::new(1, 1), Address::new(62, 34)],
             max_bitrate: None,
+            signing: None,
         })
     );
 }
@@ -123,6 +126,7 @@ fn conditions_resolve_names_and_subnets() {
     assert_eq!(
         r[0].condition,
         Condition {
+            signed: None,
             message_id: Some(heartbeat()),
             source: Some(Subnet::exact(Address::new(1, 2))),
             dest: Some(Subnet::new(Address::new(3, 4), Address::new(255, 0))),
@@ -135,16 +139,16 @@ fn conditions_resolve_names_and_subnets() {
     assert_eq!(r[3].condition, Condition::default());
     assert!(
         r[3].condition
-            .matches(99, Address::new(1, 1), Address::new(2, 2))
+            .matches(99, Address::new(1, 1), Address::new(2, 2), false)
     );
     assert!(
         r[0].condition
-            .matches(heartbeat(), Address::new(1, 2), Address::new(3, 9))
+            .matches(heartbeat(), Address::new(1, 2), Address::new(3, 9), false)
     );
     assert!(
         !r[0]
             .condition
-            .matches(heartbeat(), Address::new(1, 2), Address::new(4, 4))
+            .matches(heartbeat(), Address::new(1, 2), Address::new(4, 4), false)
     );
 }
 

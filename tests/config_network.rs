@@ -58,6 +58,7 @@ fn udp_clients_connect_and_bind_any_local_port() {
                 port: 14550
             }),
             peers: PeerLimits::default(),
+            signing: None,
         })
     );
     let Interface::Udp(u) = one("udp { connect [fd00::7]:14550; port 14551; address ::; }") else {
@@ -104,6 +105,7 @@ fn tcp_blocks_and_their_defaults() {
                 max_peers: DEFAULT_MAX_PEERS,
                 allow: vec![]
             },
+            signing: None,
         })
     );
     assert_eq!(DEFAULT_MAX_PEERS, 128);

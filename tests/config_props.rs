@@ -32,6 +32,12 @@ const PIECES: &[&str] = &[
     "connect",
     "max_peers",
     "allow",
+    "signing_key",
+    "allow_unsigned",
+    "signing_state",
+    "signed",
+    "unsigned",
+    "/etc/k.key",
     "[",
     "]",
     "::",
@@ -118,14 +124,16 @@ proptest! {
     fn valid_rules_round_trip_through_the_ast(
         action in prop::sample::select(&["accept", "reject", "call c", "goto c"][..]),
         prio in prop::option::of(any::<i32>()),
+        signed in prop::option::of(any::<bool>()),
         ty in prop::option::of(prop::sample::select(&["PING", "HEARTBEAT", "GPS_STATUS"][..])),
         from in prop::option::of((any::<u8>(), any::<u8>(), 0u8..=16)),
         to in prop::option::of((any::<u8>(), any::<u8>(), 0u8..=8)),
     ) {
         let mut rule = action.to_string();
         if let Some(p) = prio { rule += &format!(" with priority {p}"); }
-        if ty.is_some() || from.is_some() || to.is_some() {
+        if signed.is_some() || ty.is_some() || from.is_some() || to.is_some() {
             rule += " if";
+            if let Some(s) = signed { rule += if s { " signed" } else { " unsigned" }; }
             if let Some(t) = ty { rule += &format!(" {t}"); }
             if let Some((s, c, b)) = from { rule += &format!(" from {s}.{c}/{b}"); }
             if let Some((s, c, b)) = to { rule += &format!(" to {s}.{c}\\{b}"); }
@@ -133,5 +141,9 @@ proptest! {
         let src = format!("chain default {{ {rule}; }}\nchain c {{ accept; }}");
         let loaded = config::load(&src);
         prop_assert!(loaded.is_ok(), "{src}");
+        if let Ok(l) = loaded {
+            let c = l.config;
+            prop_assert_eq!(c.chain(c.default_chain).rules[0].condition.signed, signed);
+        }
     }
 }

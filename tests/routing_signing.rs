@@ -345,3 +345,30 @@ fn the_routers_signatures_never_go_back_across_a_restart() {
     assert_eq!(q.len(), 1);
     assert!(captured_ts(&q[0].packet) > ts);
 }
+
+#[test]
+fn rules_match_frames_the_router_verified() {
+    let conf = "chain default {\n    reject if unsigned ATTITUDE;\n    accept;\n}\ndefault_action accept;\n";
+    let mut r = Rig::new(conf, true);
+    assert_eq!(
+        r.through(&frame("ATTITUDE", "1.1", None)),
+        0,
+        "unsigned: rejected"
+    );
+    assert_eq!(
+        r.through(&frame("SYS_STATUS", "1.1", None)),
+        1,
+        "other types pass"
+    );
+    let t = r.next();
+    assert_eq!(
+        r.through(&signed("ATTITUDE", "1.1", t)),
+        1,
+        "verified: accepted"
+    );
+    // A signature the router has no key for (an interface without one) is unsigned.
+    let theirs = signed("ATTITUDE", "201.1", 5);
+    r.sent(r.keyed); // what the frames above sent to the keyed listener
+    r.e.handle_datagram(r.open, peer(2), &theirs, Timestamp::ZERO);
+    assert!(r.sent(r.keyed).is_empty(), "signed, but not verified here");
+}

@@ -14,7 +14,16 @@ fuzz_target!(|data: &[u8]| {
             if let (Some(link), Some(total)) = (c.queue.link_bytes, c.queue.total_bytes) {
                 assert!(total >= link);
             }
+            if let Some(path) = &c.signing_state {
+                assert!(!path.is_empty());
+            }
+            let keyed = c.interfaces.iter().any(|i| i.signing().is_some());
+            assert_eq!(c.signing_state_path(|_| None).is_some(), keyed);
             for iface in &c.interfaces {
+                // A key file path is never empty (allow_unsigned alone is an error).
+                if let Some(signing) = iface.signing() {
+                    assert!(!signing.key_file.is_empty());
+                }
                 let (connect, peers) = match iface {
                     config::Interface::Udp(u) => (&u.connect, &u.peers),
                     config::Interface::Tcp(t) => (&t.connect, &t.peers),

@@ -134,6 +134,7 @@ fn serial(value: &str) -> Result<Interface, TextError> {
         flow_control: false,
         preload: Vec::new(),
         max_bitrate: None,
+        signing: None,
     }))
 }
 

@@ -2,10 +2,13 @@
 
 use super::{Options, find_config, help, parse, version};
 use crate::config::{self, Config, render_errors};
+use crate::signing::SigningKey;
 use std::io::Write;
 use std::path::Path;
 
 /// What `main` should do after the command line has been handled.
+// Made once per process, so the size of `Run` beside `Exit` costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub enum Outcome {
     /// Exit now with this status (help, version, `--ast`, `--check`, or an error).
@@ -14,6 +17,8 @@ pub enum Outcome {
     Run {
         /// The loaded configuration (or the one the endpoints stand for).
         config: Config,
+        /// The signing key of each of `config.interfaces`, in order (`None` without one).
+        keys: Vec<Option<SigningKey>>,
         /// Where it was read from ([`ENDPOINTS_SOURCE`] for endpoints).
         path: String,
         /// The command-line options.
@@ -89,12 +94,22 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     for w in &loaded.warnings {
         let _ = writeln!(err, "warning: {path}: {w}");
     }
+    // Keys are read for --check too, so a deploy script learns of an unreadable or
+    // unprotected key before the service starts; nothing of a key is ever printed.
+    let keys = match config::read_keys(&loaded.config, &src) {
+        Ok(keys) => keys,
+        Err(errors) => {
+            let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
+            return Outcome::Exit(1);
+        }
+    };
     if options.check {
         let _ = writeln!(out, "{path}: configuration is valid");
         return Outcome::Exit(0);
     }
     Outcome::Run {
         config: loaded.config,
+        keys,
         path,
         options,
     }
@@ -124,6 +139,7 @@ fn run_endpoints(options: Options, out: &mut dyn Write, err: &mut dyn Write) -> 
         return Outcome::Exit(0);
     }
     Outcome::Run {
+        keys: vec![None; config.interfaces.len()],
         config,
         path: ENDPOINTS_SOURCE.to_string(),
         options,

@@ -60,6 +60,13 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<QueueSetting>,
     },
+    /// `signing_state PATH;`: where the signing timestamps are saved.
+    SigningState {
+        /// The `signing_state` keyword.
+        keyword: Span,
+        /// The path, as written.
+        path: Span,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.
@@ -100,6 +107,21 @@ pub enum SocketSetting {
         /// The prefix length digits, when written.
         prefix: Option<Span>,
     },
+    /// `signing_key PATH;`
+    SigningKey(Span),
+    /// `allow_unsigned yes|no;`
+    AllowUnsigned(YesNo),
+}
+
+/// A written `yes` or `no` after a statement keyword.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct YesNo {
+    /// The statement keyword.
+    pub keyword: Span,
+    /// The value word.
+    pub span: Span,
+    /// True for `yes`.
+    pub yes: bool,
 }
 
 /// A written IP address.
@@ -139,6 +161,10 @@ pub enum SerialSetting {
     Preload(AddressAst),
     /// `max_bitrate N;`
     MaxBitrate(Span),
+    /// `signing_key PATH;`
+    SigningKey(Span),
+    /// `allow_unsigned yes|no;`
+    AllowUnsigned(YesNo),
 }
 
 /// A written MAVLink address `S.C`.
@@ -202,11 +228,13 @@ pub enum ActionAst {
     Goto(Span),
 }
 
-/// `if [TYPE] [from SUBNET] [to SUBNET]`
+/// `if [signed|unsigned] [TYPE] [from SUBNET] [to SUBNET]`
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ConditionAst {
     /// The `if` keyword.
     pub keyword: Span,
+    /// The `signed` or `unsigned` word, and true for `signed`.
+    pub signed: Option<(Span, bool)>,
     /// The packet type name.
     pub packet_type: Option<Span>,
     /// The subnet after `from`.

@@ -2,11 +2,13 @@
 //! the semantic model the router runs from.
 //!
 //! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
-//! [`load`] also checks meaning and gives a [`Config`].
+//! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
+//! signing keys it names.
 
 pub mod ast;
 pub mod claims;
 pub mod diagnostic;
+pub mod keys;
 pub mod lexer;
 pub mod lines;
 pub mod model;
@@ -18,6 +20,7 @@ pub mod sockets;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
+pub use keys::read_keys;
 pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;

@@ -2,6 +2,7 @@
 
 use crate::address::{Address, Subnet};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+use std::path::PathBuf;
 
 pub use super::net::{Host, IpRange, Remote};
 
@@ -18,6 +19,9 @@ pub struct Config {
     pub default_chain: ChainId,
     /// How many bytes the outgoing queues may hold (the `queue` block).
     pub queue: QueueBounds,
+    /// Where the signing timestamps are saved (`signing_state PATH;`), as written; see
+    /// [`Config::signing_state_path`] for the default.
+    pub signing_state: Option<String>,
 }
 
 impl Config {
@@ -34,7 +38,29 @@ impl Config {
             }],
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
+            signing_state: None,
         }
+    }
+
+    /// Where the router saves the signing timestamps of its streams: `None` when no
+    /// interface has a `signing_key`; else the `signing_state` path, or by default
+    /// `signing.state` in `$STATE_DIRECTORY` (the first of its directories; systemd sets
+    /// it for `StateDirectory=`), or `/var/lib/mavtables/signing.state` when that is
+    /// unset. `env` looks up an environment variable.
+    pub fn signing_state_path(&self, env: impl Fn(&str) -> Option<String>) -> Option<PathBuf> {
+        if !self.interfaces.iter().any(|i| i.signing().is_some()) {
+            return None;
+        }
+        if let Some(path) = &self.signing_state {
+            return Some(PathBuf::from(path));
+        }
+        let state_dir = env("STATE_DIRECTORY")
+            .and_then(|dirs| dirs.split(':').next().map(str::to_string))
+            .filter(|dir| !dir.is_empty());
+        Some(match state_dir {
+            Some(dir) => PathBuf::from(dir).join(SIGNING_STATE_FILE),
+            None => PathBuf::from(DEFAULT_STATE_DIRECTORY).join(SIGNING_STATE_FILE),
+        })
     }
 
     /// The chain with id `id`.
@@ -47,6 +73,12 @@ impl Config {
         self.chains.iter().position(|c| c.name == name).map(ChainId)
     }
 }
+
+/// The file name of the signing state in its state directory.
+pub const SIGNING_STATE_FILE: &str = "signing.state";
+
+/// The state directory when `$STATE_DIRECTORY` is not set.
+pub const DEFAULT_STATE_DIRECTORY: &str = "/var/lib/mavtables";
 
 /// The fallback decision when no rule decides.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -67,6 +99,27 @@ pub enum Interface {
     Serial(SerialInterface),
     /// A TCP listener or a TCP connection to one peer.
     Tcp(TcpInterface),
+}
+
+impl Interface {
+    /// The block's signing settings, when it has a `signing_key`.
+    pub fn signing(&self) -> Option<&InterfaceSigning> {
+        match self {
+            Interface::Udp(u) => u.signing.as_ref(),
+            Interface::Serial(s) => s.signing.as_ref(),
+            Interface::Tcp(t) => t.signing.as_ref(),
+        }
+    }
+}
+
+/// The MAVLink 2 signing of one interface: `signing_key PATH;` and `allow_unsigned`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InterfaceSigning {
+    /// The key file's path, as written (read when the router starts).
+    pub key_file: String,
+    /// `allow_unsigned yes;`: unsigned packets received on the interface are let in
+    /// (default no: they are dropped).
+    pub allow_unsigned: bool,
 }
 
 /// How many remotes a server block takes when `max_peers` is not given.
@@ -111,6 +164,8 @@ pub struct UdpInterface {
     pub connect: Option<Remote>,
     /// Which remotes a server takes (defaults for a client, where it has no effect).
     pub peers: PeerLimits,
+    /// MAVLink 2 signing, when the block has a `signing_key`.
+    pub signing: Option<InterfaceSigning>,
 }
 
 impl Default for UdpInterface {
@@ -121,6 +176,7 @@ impl Default for UdpInterface {
             max_bitrate: None,
             connect: None,
             peers: PeerLimits::default(),
+            signing: None,
         }
     }
 }
@@ -148,6 +204,8 @@ pub struct TcpInterface {
     pub connect: Option<Remote>,
     /// Which remotes a server takes (defaults for a client, where it has no effect).
     pub peers: PeerLimits,
+    /// MAVLink 2 signing, when the block has a `signing_key`.
+    pub signing: Option<InterfaceSigning>,
 }
 
 impl TcpInterface {
@@ -168,6 +226,7 @@ impl Default for TcpInterface {
             max_bitrate: None,
             connect: None,
             peers: PeerLimits::default(),
+            signing: None,
         }
     }
 }
@@ -199,6 +258,8 @@ pub struct SerialInterface {
     pub preload: Vec<Address>,
     /// Transmit limit in bits per second; `None` (also for `max_bitrate 0`) means no limit.
     pub max_bitrate: Option<u64>,
+    /// MAVLink 2 signing, when the block has a `signing_key`.
+    pub signing: Option<InterfaceSigning>,
 }
 
 /// The `queue { link_bytes N; total_bytes N; }` block: how many bytes of packets (each
@@ -260,9 +321,11 @@ pub enum Action {
     Goto(ChainId),
 }
 
-/// `if [TYPE] [from SUBNET] [to SUBNET]`: every part present must match.
+/// `if [signed|unsigned] [TYPE] [from SUBNET] [to SUBNET]`: every part present must match.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Condition {
+    /// `Some(true)`: the packet must be signed (`signed`); `Some(false)`: unsigned.
+    pub signed: Option<bool>,
     /// Message id the packet must have.
     pub message_id: Option<u32>,
     /// Subnet the packet's source address must be in.
@@ -272,9 +335,11 @@ pub struct Condition {
 }
 
 impl Condition {
-    /// Whether a packet with `message_id` from `source`, being sent towards `dest`, matches.
-    pub fn matches(&self, message_id: u32, source: Address, dest: Address) -> bool {
-        self.message_id.is_none_or(|id| id == message_id)
+    /// Whether a packet with `message_id` from `source`, being sent towards `dest`,
+    /// matches; `signed` tells whether it arrived signed (and its signature was accepted).
+    pub fn matches(&self, message_id: u32, source: Address, dest: Address, signed: bool) -> bool {
+        self.signed.is_none_or(|s| s == signed)
+            && self.message_id.is_none_or(|id| id == message_id)
             && self.source.is_none_or(|s| s.contains(source))
             && self.dest.is_none_or(|d| d.contains(dest))
     }

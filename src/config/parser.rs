@@ -10,7 +10,15 @@ use super::lexer::{Cursor, is_word_char};
 use super::{Span, net, suggest};
 use std::net::{Ipv4Addr, Ipv6Addr};
 
-const TOP_LEVEL: &[&str] = &["default_action", "udp", "tcp", "serial", "queue", "chain"];
+const TOP_LEVEL: &[&str] = &[
+    "default_action",
+    "udp",
+    "tcp",
+    "serial",
+    "queue",
+    "chain",
+    "signing_state",
+];
 const UDP_STATEMENTS: &[&str] = &[
     "port",
     "address",
@@ -18,6 +26,8 @@ const UDP_STATEMENTS: &[&str] = &[
     "connect",
     "max_peers",
     "allow",
+    "signing_key",
+    "allow_unsigned",
 ];
 const SERIAL_STATEMENTS: &[&str] = &[
     "device",
@@ -25,6 +35,8 @@ const SERIAL_STATEMENTS: &[&str] = &[
     "flow_control",
     "preload",
     "max_bitrate",
+    "signing_key",
+    "allow_unsigned",
 ];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
 const ACTIONS: &[&str] = &["accept", "reject", "call", "goto"];
@@ -33,6 +45,7 @@ const EXPECTED_SEMICOLON: &str = "expected end of statement ';' character";
 const INVALID_SUBNET: &str = "expected a valid MAVLink subnet";
 const INVALID_ADDRESS: &str = "expected a valid MAVLink address";
 const INVALID_CONDITION: &str = "condition is empty or invalid";
+const EXPECTED_KEY_PATH: &str = "expected the path of a signing key file";
 
 /// Parses a whole configuration file (syntax only; meaning is checked by
 /// [`super::semantics`]).
@@ -123,6 +136,15 @@ impl<'a> Parser<'a> {
                     settings,
                 })
             }
+            "signing_state" => {
+                self.c.word();
+                let path = self.path("expected the path of the signing state file")?;
+                self.semicolon(false)?;
+                Ok(Item::SigningState {
+                    keyword: span,
+                    path,
+                })
+            }
             "chain" => {
                 self.c.word();
                 let name = self.chain_name()?;
@@ -184,6 +206,14 @@ impl<'a> Parser<'a> {
             "allow" => {
                 self.c.word();
                 self.allow()?
+            }
+            "signing_key" => {
+                self.c.word();
+                SocketSetting::SigningKey(self.path(EXPECTED_KEY_PATH)?)
+            }
+            "allow_unsigned" => {
+                self.c.word();
+                SocketSetting::AllowUnsigned(self.yes_no(span)?)
             }
             _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
         };
@@ -251,14 +281,7 @@ impl<'a> Parser<'a> {
         let setting = match word {
             "device" => {
                 self.c.word();
-                let at = self.c.expected_at();
-                let path = self
-                    .c
-                    .take_while(|c| !c.is_whitespace() && !matches!(c, ';' | '#' | '{' | '}'));
-                if path.is_empty() {
-                    return Err(self.value_error(at, "expected a valid serial port device name"));
-                }
-                SerialSetting::Device(path)
+                SerialSetting::Device(self.path("expected a valid serial port device name")?)
             }
             "baudrate" => {
                 self.c.word();
@@ -266,14 +289,11 @@ impl<'a> Parser<'a> {
             }
             "flow_control" => {
                 self.c.word();
-                let at = self.c.expected_at();
-                let enabled = match self.c.peek_word() {
-                    Some((_, "yes")) => true,
-                    Some((_, "no")) => false,
-                    _ => return Err(self.value_error(at, "expected 'yes' or 'no'")),
-                };
-                let (span, _) = self.c.word().unwrap_or((at, ""));
-                SerialSetting::FlowControl { span, enabled }
+                let value = self.yes_no(span)?;
+                SerialSetting::FlowControl {
+                    span: value.span,
+                    enabled: value.yes,
+                }
             }
             "preload" => {
                 self.c.word();
@@ -284,10 +304,43 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 SerialSetting::MaxBitrate(self.number("expected a valid bitrate")?)
             }
+            "signing_key" => {
+                self.c.word();
+                SerialSetting::SigningKey(self.path(EXPECTED_KEY_PATH)?)
+            }
+            "allow_unsigned" => {
+                self.c.word();
+                SerialSetting::AllowUnsigned(self.yes_no(span)?)
+            }
             _ => return Err(unsupported(span, word, SERIAL_STATEMENTS)),
         };
         self.semicolon(false)?;
         Ok(setting)
+    }
+
+    /// A path (of a device or file), written as is: it runs to whitespace, `;`, `#` or a
+    /// brace.
+    fn path(&mut self, message: &str) -> Result<Span> {
+        let at = self.c.expected_at();
+        let path = self
+            .c
+            .take_while(|c| !c.is_whitespace() && !matches!(c, ';' | '#' | '{' | '}'));
+        if path.is_empty() {
+            return Err(self.value_error(at, message));
+        }
+        Ok(path)
+    }
+
+    /// `yes` or `no` after the statement keyword at `keyword`.
+    fn yes_no(&mut self, keyword: Span) -> Result<YesNo> {
+        let at = self.c.expected_at();
+        let yes = match self.c.peek_word() {
+            Some((_, "yes")) => true,
+            Some((_, "no")) => false,
+            _ => return Err(self.value_error(at, "expected 'yes' or 'no'")),
+        };
+        let (span, _) = self.c.word().unwrap_or((at, ""));
+        Ok(YesNo { keyword, span, yes })
     }
 
     fn queue_setting(&mut self) -> Result<QueueSetting> {
@@ -370,11 +423,19 @@ impl<'a> Parser<'a> {
     fn condition(&mut self, keyword: Span) -> Result<ConditionAst> {
         let mut cond = ConditionAst {
             keyword,
+            signed: None,
             packet_type: None,
             source: None,
             dest: None,
         };
         let at = self.c.expected_at();
+        // `signed`/`unsigned` cannot be message names, which are upper case.
+        if let Some(span) = self.c.eat_keyword("signed") {
+            cond.signed = Some((span, true));
+        } else if let Some(span) = self.c.eat_keyword("unsigned") {
+            cond.signed = Some((span, false));
+        }
+        self.c.skip_padding();
         if let Some((span, word)) = self.c.peek_word()
             && word != "from"
             && word != "to"
@@ -405,7 +466,11 @@ impl<'a> Parser<'a> {
             self.c.skip_padding();
             cond.dest = Some(self.subnet()?);
         }
-        if cond.packet_type.is_none() && cond.source.is_none() && cond.dest.is_none() {
+        if cond.signed.is_none()
+            && cond.packet_type.is_none()
+            && cond.source.is_none()
+            && cond.dest.is_none()
+        {
             return Err(self.value_error(at, INVALID_CONDITION));
         }
         Ok(cond)
@@ -548,10 +613,10 @@ impl<'a> Parser<'a> {
         let mut d = self.value_error(at, EXPECTED_SEMICOLON);
         if in_rule
             && let Some((_, w)) = self.c.peek_word()
-            && matches!(w, "with" | "if" | "from" | "to")
+            && matches!(w, "with" | "if" | "from" | "to" | "signed" | "unsigned")
         {
             d = d.with_note(
-                "a rule is written: ACTION [with priority N] [if [TYPE] [from SUBNET] [to SUBNET]];",
+                "a rule is written: ACTION [with priority N] [if [signed|unsigned] [TYPE] [from SUBNET] [to SUBNET]];",
             );
         }
         Err(d)

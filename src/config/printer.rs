@@ -76,6 +76,8 @@ impl Printer<'_, '_> {
                         SerialSetting::FlowControl { span, .. } => ("flow_control", *span),
                         SerialSetting::Preload(a) => ("preload", a.span),
                         SerialSetting::MaxBitrate(v) => ("max_bitrate", *v),
+                        SerialSetting::SigningKey(v) => ("signing_key", *v),
+                        SerialSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
                     };
                     self.node(1, span, name, Some(span));
                 }
@@ -90,6 +92,7 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::SigningState { path, .. } => self.node(0, *path, "signing_state", Some(*path)),
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {
@@ -111,6 +114,9 @@ impl Printer<'_, '_> {
                 SocketSetting::Connect { span, .. } => ("connect", *span),
                 SocketSetting::MaxPeers(v) => ("max_peers", *v),
                 SocketSetting::Allow { span, .. } => ("allow", *span),
+                // The key file's path, as written: the printer reads no file.
+                SocketSetting::SigningKey(v) => ("signing_key", *v),
+                SocketSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
             };
             self.node(1, span, name, Some(span));
         }
@@ -128,6 +134,9 @@ impl Printer<'_, '_> {
         }
         if let Some(c) = &rule.condition {
             self.node(2, c.keyword, "condition", None);
+            if let Some((at, signed)) = c.signed {
+                self.node(3, at, if signed { "signed" } else { "unsigned" }, None);
+            }
             if let Some(t) = c.packet_type {
                 self.node(3, t, "packet_type", Some(t));
             }

@@ -3,7 +3,7 @@
 //! finds (in file order) rather than stopping at the first.
 
 use super::ast::{
-    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst,
+    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst, YesNo,
 };
 use super::claims::Claim;
 use super::diagnostic::Diagnostic;
@@ -43,6 +43,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     let mut queue = QueueBounds::default();
     // Line of the first `queue` block: a second one is an error.
     let mut queue_line: Option<usize> = None;
+    let mut signing_state = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -93,6 +94,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                     queue = bounds.unwrap_or_default();
                 }
             }
+            Item::SigningState { path, .. } => {
+                signing_state = Some(ast.text(*path).to_string());
+            }
             Item::Chain { name, rules } => {
                 let id = cx.ids[ast.text(*name)];
                 for rule in rules {
@@ -132,6 +136,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             chains,
             default_chain,
             queue,
+            signing_state,
         },
         warnings,
     })
@@ -280,7 +285,10 @@ impl<'a> Checker<'a, '_> {
             flow_control: false,
             preload: Vec::new(),
             max_bitrate: None,
+            signing: None,
         };
+        let mut key_file = None;
+        let mut allow_unsigned = Vec::new();
         let mut ok = true;
         for s in settings {
             match s {
@@ -300,6 +308,15 @@ impl<'a> Checker<'a, '_> {
                     Some(b) => serial.max_bitrate = (b > 0).then_some(b),
                     None => ok = false,
                 },
+                SerialSetting::SigningKey(v) => key_file = Some(*v),
+                SerialSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
+            }
+        }
+        match interface_signing(self.ast, key_file, &allow_unsigned) {
+            Ok(signing) => serial.signing = signing,
+            Err(d) => {
+                self.error(d);
+                ok = false;
             }
         }
         match device {
@@ -479,6 +496,7 @@ impl<'a> Checker<'a, '_> {
             Some(s) => self.subnet(s).map(Some),
         };
         Some(Condition {
+            signed: c.signed.map(|(_, signed)| signed),
             message_id: message_id?,
             source: source?,
             dest: dest?,
@@ -562,6 +580,30 @@ impl<'a> Checker<'a, '_> {
             d = d.with_note(note);
         }
         self.error(d);
+    }
+}
+
+/// The signing settings of one interface block from its `signing_key` (the last one
+/// written) and `allow_unsigned` statements (the last one counts); `allow_unsigned`
+/// without a key is an error at the first of them.
+pub(super) fn interface_signing(
+    ast: &Ast<'_>,
+    key_file: Option<Span>,
+    allow_unsigned: &[YesNo],
+) -> Result<Option<InterfaceSigning>, Diagnostic> {
+    match (key_file, allow_unsigned.first()) {
+        (Some(path), _) => Ok(Some(InterfaceSigning {
+            key_file: ast.text(path).to_string(),
+            allow_unsigned: allow_unsigned.last().is_some_and(|v| v.yes),
+        })),
+        (None, None) => Ok(None),
+        (None, Some(first)) => Err(Diagnostic::new(
+            first.keyword,
+            "'allow_unsigned' needs a 'signing_key' in the same block",
+        )
+        .with_note(
+            "only a block with a signing key checks signatures; add 'signing_key PATH;' or leave out 'allow_unsigned'",
+        )),
     }
 }
 

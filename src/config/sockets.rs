@@ -39,6 +39,8 @@ pub fn check(
     let mut max_peers = None;
     let mut allow = Vec::new();
     let mut first_allow = None;
+    let mut key_file = None;
+    let mut allow_unsigned = Vec::new();
     for s in settings {
         match s {
             SocketSetting::Port(v) => {
@@ -90,8 +92,17 @@ pub fn check(
                     allow.push(range);
                 }
             }
+            SocketSetting::SigningKey(v) => key_file = Some(*v),
+            SocketSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
         }
     }
+    let signing = match super::semantics::interface_signing(ast, key_file, &allow_unsigned) {
+        Ok(signing) => signing,
+        Err(d) => {
+            cx.error(d);
+            None
+        }
+    };
     let block = match kind {
         Kind::Udp => "udp",
         Kind::Tcp => "tcp",
@@ -152,6 +163,7 @@ pub fn check(
             max_bitrate,
             connect,
             peers,
+            signing,
         }),
         Kind::Tcp => Interface::Tcp(TcpInterface {
             port: port.map_or(TcpInterface::DEFAULT_PORT, |(p, _)| p),
@@ -159,6 +171,7 @@ pub fn check(
             max_bitrate,
             connect,
             peers,
+            signing,
         }),
     })
 }

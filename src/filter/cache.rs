@@ -1,4 +1,4 @@
-//! A bounded memo of filter verdicts keyed by (message id, source, destination).
+//! A bounded memo of filter verdicts keyed by (message id, source, destination, signed).
 //!
 //! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was
 //! there. Memory is fixed at construction (16 bytes a slot); a lookup is one multiply,
@@ -14,6 +14,9 @@ pub const DEFAULT_SLOTS: usize = 4096;
 
 /// Marks an occupied slot; message ids use only the low 24 bits of their 32.
 const VALID: u64 = 1 << 63;
+
+/// Set in the key of a signed packet's verdict (bit 56, above any 24-bit message id).
+const SIGNED: u64 = 1 << 56;
 
 /// Lookup counters of a [`VerdictCache`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -58,8 +61,9 @@ impl VerdictCache {
     }
 
     #[inline]
-    fn key(message_id: u32, source: Address, dest: Address) -> u64 {
+    fn key(message_id: u32, source: Address, dest: Address, signed: bool) -> u64 {
         VALID
+            | if signed { SIGNED } else { 0 }
             | (u64::from(message_id) << 32)
             | (u64::from(source.to_u16()) << 16)
             | u64::from(dest.to_u16())
@@ -75,8 +79,14 @@ impl VerdictCache {
 
     /// The remembered verdict, if any.
     #[inline]
-    pub fn get(&mut self, message_id: u32, source: Address, dest: Address) -> Option<Verdict> {
-        let key = Self::key(message_id, source, dest);
+    pub fn get(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+    ) -> Option<Verdict> {
+        let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
         match self.slots.get(i) {
             Some(s) if s.key == key => {
@@ -92,8 +102,15 @@ impl VerdictCache {
 
     /// Remembers `verdict`, replacing the slot's previous entry.
     #[inline]
-    pub fn insert(&mut self, message_id: u32, source: Address, dest: Address, verdict: Verdict) {
-        let key = Self::key(message_id, source, dest);
+    pub fn insert(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+        verdict: Verdict,
+    ) {
+        let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
         if let Some(s) = self.slots.get_mut(i) {
             *s = Slot { key, verdict };
@@ -117,32 +134,45 @@ mod tests {
     #[test]
     fn remembers_and_counts() {
         let mut c = VerdictCache::new(16);
-        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
-        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(7));
-        assert_eq!(c.get(4, a(1, 1), a(2, 2)), Some(Verdict::Accept(7)));
-        assert_eq!(c.get(4, a(1, 1), a(2, 3)), None);
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), None);
+        c.insert(4, a(1, 1), a(2, 2), false, Verdict::Accept(7));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), Some(Verdict::Accept(7)));
+        assert_eq!(c.get(4, a(1, 1), a(2, 3), false), None);
         assert_eq!(c.stats(), CacheStats { hits: 1, misses: 2 });
     }
 
     #[test]
     fn zero_slots_never_remembers() {
         let mut c = VerdictCache::new(0);
-        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(7));
-        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
+        c.insert(4, a(1, 1), a(2, 2), false, Verdict::Accept(7));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), None);
     }
 
     #[test]
     fn one_slot_keeps_the_latest() {
         let mut c = VerdictCache::new(1);
-        c.insert(4, a(1, 1), a(2, 2), Verdict::Accept(1));
-        c.insert(5, a(1, 1), a(2, 2), Verdict::Reject);
-        assert_eq!(c.get(4, a(1, 1), a(2, 2)), None);
-        assert_eq!(c.get(5, a(1, 1), a(2, 2)), Some(Verdict::Reject));
+        c.insert(4, a(1, 1), a(2, 2), false, Verdict::Accept(1));
+        c.insert(5, a(1, 1), a(2, 2), false, Verdict::Reject);
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), None);
+        assert_eq!(c.get(5, a(1, 1), a(2, 2), false), Some(Verdict::Reject));
+    }
+
+    #[test]
+    fn signed_and_unsigned_verdicts_are_kept_apart() {
+        let mut c = VerdictCache::new(64);
+        c.insert(4, a(1, 1), a(2, 2), true, Verdict::Accept(3));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), None);
+        c.insert(4, a(1, 1), a(2, 2), false, Verdict::Reject);
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), true), Some(Verdict::Accept(3)));
+        assert_eq!(c.get(4, a(1, 1), a(2, 2), false), Some(Verdict::Reject));
+        // The largest message id does not reach the signed bit.
+        c.insert(0xFF_FFFF, a(1, 1), a(2, 2), false, Verdict::Reject);
+        assert_eq!(c.get(0xFF_FFFF, a(1, 1), a(2, 2), true), None);
     }
 
     #[test]
     fn zeroed_slots_do_not_match_id_zero_from_zero_to_zero() {
         let mut c = VerdictCache::new(8);
-        assert_eq!(c.get(0, a(0, 0), a(0, 0)), None);
+        assert_eq!(c.get(0, a(0, 0), a(0, 0), false), None);
     }
 }

@@ -1,4 +1,5 @@
-//! Walks the chains of a [`Config`] for one (message id, source, destination) triple.
+//! Walks the chains of a [`Config`] for one (message id, source, destination, signed)
+//! key.
 //!
 //! The original mavtables' semantics: rules run in order and the first that decides
 //! wins; a rule whose condition fails continues. `call X` returns X's result as-is, so
@@ -60,9 +61,16 @@ impl Evaluator {
         }
     }
 
-    /// The verdict for a packet with `message_id` from `source`, filtered for `dest`.
-    pub fn evaluate(&mut self, message_id: u32, source: Address, dest: Address) -> Verdict {
-        match self.walk(message_id, source, dest) {
+    /// The verdict for a packet with `message_id` from `source`, filtered for `dest`;
+    /// `signed` tells whether it arrived with an accepted signature.
+    pub fn evaluate(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+    ) -> Verdict {
+        match self.walk(message_id, source, dest, signed) {
             Outcome::Accept(p) => Verdict::Accept(p.unwrap_or(0)),
             Outcome::Reject => Verdict::Reject,
             Outcome::Continue | Outcome::Default => match self.default_action {
@@ -72,7 +80,7 @@ impl Evaluator {
         }
     }
 
-    fn walk(&mut self, message_id: u32, source: Address, dest: Address) -> Outcome {
+    fn walk(&mut self, message_id: u32, source: Address, dest: Address, signed: bool) -> Outcome {
         let depth_limit = self.chains.len().max(1);
         self.stack.clear();
         self.stack.push(CallFrame {
@@ -93,7 +101,7 @@ impl Evaluator {
                 None => Outcome::Continue,
                 Some(rule) => {
                     top.next_rule += 1;
-                    if !rule.condition.matches(message_id, source, dest) {
+                    if !rule.condition.matches(message_id, source, dest, signed) {
                         continue;
                     }
                     match rule.action {
@@ -151,7 +159,12 @@ mod tests {
 
     fn eval(src: &str, id: u32, from: (u8, u8), to: (u8, u8)) -> Verdict {
         let config = crate::config::load(src).expect("test config loads").config;
-        Evaluator::new(&config).evaluate(id, Address::new(from.0, from.1), Address::new(to.0, to.1))
+        Evaluator::new(&config).evaluate(
+            id,
+            Address::new(from.0, from.1),
+            Address::new(to.0, to.1),
+            false,
+        )
     }
 
     #[test]
@@ -257,10 +270,11 @@ mod tests {
             ],
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
+            signing_state: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
-            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2)),
+            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2), false),
             Verdict::Reject
         );
         let self_loop = Config {
@@ -272,7 +286,7 @@ mod tests {
         };
         let mut e = Evaluator::new(&self_loop);
         assert_eq!(
-            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2)),
+            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2), false),
             Verdict::Reject
         );
     }
@@ -288,10 +302,11 @@ mod tests {
             }],
             default_chain: ChainId(3),
             queue: QueueBounds::default(),
+            signing_state: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
-            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2)),
+            e.evaluate(PING, Address::new(1, 1), Address::new(2, 2), false),
             Verdict::Accept(0)
         );
     }

@@ -2,11 +2,12 @@
 //! every (packet, destination address) pair, exactly as the original mavtables did
 //! (`docs/configuration.md` describes them for users).
 //!
-//! The result of the filter depends only on the packet's message id, its source address
-//! and the destination address being filtered for, so [`Filter`] memoizes it in a small
-//! bounded cache ([`cache`]): a router that evaluates the filter once per candidate
-//! address per link pays the rule walk ([`eval`]) only for the first packet of each
-//! (message id, source, destination) triple, however many rules the configuration has.
+//! The result of the filter depends only on the packet's message id, its source address,
+//! the destination address being filtered for and whether the packet arrived signed, so
+//! [`Filter`] memoizes it in a small bounded cache ([`cache`]): a router that evaluates
+//! the filter once per candidate address per link pays the rule walk ([`eval`]) only for
+//! the first packet of each (message id, source, destination, signed) key, however many
+//! rules the configuration has.
 //!
 //! ```
 //! use mavtables::address::Address;
@@ -17,8 +18,8 @@
 //!     .config;
 //! let mut filter = Filter::new(&config);
 //! let (src, dest) = (Address::new(1, 1), Address::new(2, 1));
-//! assert_eq!(filter.check(4, src, dest), Verdict::Accept(3)); // PING
-//! assert_eq!(filter.check(0, src, dest), Verdict::Reject); // HEARTBEAT: default_action
+//! assert_eq!(filter.check(4, src, dest, false), Verdict::Accept(3)); // PING
+//! assert_eq!(filter.check(0, src, dest, false), Verdict::Reject); // HEARTBEAT: default_action
 //! ```
 
 pub mod cache;
@@ -74,14 +75,22 @@ impl Filter {
         }
     }
 
-    /// The verdict for a packet with `message_id` from `source`, filtered for `dest`.
+    /// The verdict for a packet with `message_id` from `source`, filtered for `dest`;
+    /// `signed` tells whether it arrived with an accepted signature (for `if signed` and
+    /// `if unsigned` rules).
     #[inline]
-    pub fn check(&mut self, message_id: u32, source: Address, dest: Address) -> Verdict {
-        if let Some(v) = self.cache.get(message_id, source, dest) {
+    pub fn check(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+    ) -> Verdict {
+        if let Some(v) = self.cache.get(message_id, source, dest, signed) {
             return v;
         }
-        let v = self.evaluator.evaluate(message_id, source, dest);
-        self.cache.insert(message_id, source, dest, v);
+        let v = self.evaluator.evaluate(message_id, source, dest, signed);
+        self.cache.insert(message_id, source, dest, signed, v);
         v
     }
 

@@ -21,8 +21,11 @@ pub enum Decision {
 /// Decides what happens to a packet with `message_id` from `source`, whose payload targets
 /// `target`, on a link whose addresses are `pool`. A link that `reaches_unknown` (a
 /// client, whose peer may never speak first) takes broadcasts while its pool is empty,
-/// filtered for the broadcast address `0.0`.
+/// filtered for the broadcast address `0.0`. `signed` tells the filter whether the packet
+/// arrived with an accepted signature.
 #[inline]
+// The packet's facts as plain values, as the per-link hot loop has them at hand.
+#[allow(clippy::too_many_arguments)]
 pub fn decide(
     filter: &mut Filter,
     pool: &AddressPool,
@@ -31,6 +34,7 @@ pub fn decide(
     message_id: u32,
     source: Address,
     target: Option<Address>,
+    signed: bool,
 ) -> Decision {
     if pool.contains(source, now) {
         return Decision::Silent;
@@ -49,9 +53,10 @@ pub fn decide(
                     std::iter::once(Address::new(0, 0)),
                     message_id,
                     source,
+                    signed,
                 );
             }
-            best(filter, candidates, message_id, source)
+            best(filter, candidates, message_id, source, signed)
         }
         // System broadcast S.0: every address of system S; none known is silent.
         Some(Address {
@@ -65,7 +70,7 @@ pub fn decide(
             if of_system.peek().is_none() {
                 return Decision::Silent;
             }
-            best(filter, of_system, message_id, source)
+            best(filter, of_system, message_id, source, signed)
         }
         // Targeted S.C: filtered once for S.C itself if present, or (component-broadcast
         // fallback) if any component of S is present; otherwise silent.
@@ -74,7 +79,7 @@ pub fn decide(
             if !reachable {
                 return Decision::Silent;
             }
-            match filter.check(message_id, source, dest) {
+            match filter.check(message_id, source, dest, signed) {
                 Verdict::Accept(p) => Decision::Accept(p),
                 Verdict::Reject => Decision::Reject,
             }
@@ -89,10 +94,11 @@ fn best(
     candidates: impl Iterator<Item = Address>,
     message_id: u32,
     source: Address,
+    signed: bool,
 ) -> Decision {
     let mut best: Option<i32> = None;
     for dest in candidates {
-        if let Verdict::Accept(p) = filter.check(message_id, source, dest) {
+        if let Verdict::Accept(p) = filter.check(message_id, source, dest, signed) {
             best = Some(best.map_or(p, |b| b.max(p)));
         }
     }

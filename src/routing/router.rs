@@ -222,7 +222,6 @@ impl Router {
         now: Timestamp,
         out: &mut Output,
     ) {
-        let _ = signed; // the filter's `signed`/`unsigned` conditions will use it
         let Some(si) = self.index(source) else {
             return;
         };
@@ -259,6 +258,7 @@ impl Router {
                 message_id,
                 src,
                 target,
+                signed,
             );
             match decision {
                 Decision::Silent => {}

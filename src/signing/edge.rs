@@ -6,7 +6,7 @@ use super::clock::SigningClock;
 use super::counters::SigningCounters;
 use super::key::SigningKey;
 use super::sign::{sign, wants_signature};
-use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN, fingerprint};
+use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
 use super::streams::{StreamId, StreamTable};
 use super::verify::{Admission, Check, Refusal};
 use crate::routing::{Packet, Timestamp};
@@ -119,7 +119,7 @@ impl Signing {
     pub fn restore(&mut self, state: &SavedState) -> usize {
         self.clock.raise_floor(state.clock);
         let margin = if state.clean { 0 } else { UNCLEAN_MARGIN };
-        let prints: Vec<[u8; 8]> = self.keys.iter().map(fingerprint).collect();
+        let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
         let mut n = 0;
         for s in &state.streams {
             let Some(key) = prints.iter().position(|p| *p == s.key) else {
@@ -144,7 +144,7 @@ impl Signing {
             return None;
         }
         self.changed = false;
-        let prints: Vec<[u8; 8]> = self.keys.iter().map(fingerprint).collect();
+        let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
         let streams = self
             .streams
             .snapshot()

@@ -16,5 +16,5 @@ pub mod verify;
 
 pub use counters::SigningCounters;
 pub use edge::{Edge, Signing};
-pub use key::SigningKey;
+pub use key::{KeyError, SigningKey};
 pub use verify::{Admission, Refusal};

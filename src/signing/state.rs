@@ -8,16 +8,15 @@
 //! clock 371234567890
 //! stream 9f86d081884c7d65 0 255 190 371234567000
 //! ```
-//! Keys are named by their fingerprint (see [`fingerprint`]), never by their
+//! Keys are named by their fingerprint (see [`SigningKey::fingerprint`]), never by their
 //! bytes. `clean 0` marks a file written while running: after a crash, frames accepted
 //! after it was written may be replayable, so each stream's floor is raised by
 //! [`UNCLEAN_MARGIN`] when it is read.
 
 use std::fmt::Write;
 
-use sha2::{Digest, Sha256};
-
 use super::clock::UNITS_PER_SEC;
+#[cfg(doc)]
 use super::key::SigningKey;
 
 /// The first line of a state file.
@@ -127,18 +126,6 @@ fn parse_fingerprint(hex: &str) -> Option<[u8; 8]> {
         *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).ok()?;
     }
     Some(out)
-}
-
-/// The fingerprint naming `key` in the file: the start of SHA-256 of a fixed label and
-/// the key, which tells keys apart without revealing them.
-pub fn fingerprint(key: &SigningKey) -> [u8; 8] {
-    let mut h = Sha256::new();
-    h.update(b"mavtables key fingerprint");
-    h.update(key.as_bytes());
-    let digest = h.finalize();
-    let mut out = [0u8; 8];
-    out.copy_from_slice(&digest[..8]);
-    out
 }
 
 #[cfg(test)]
