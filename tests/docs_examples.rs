@@ -57,3 +57,27 @@ fn the_documented_endpoints_are_the_ones_understood() {
         );
     }
 }
+
+#[test]
+fn the_signing_deployments_are_valid() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs/configuration.md");
+    let section = doc
+        .split("### Three deployments")
+        .nth(1)
+        .and_then(|s| s.split("\n### ").next())
+        .expect("signing deployments");
+    let blocks: Vec<&str> = section.split("```").skip(1).step_by(2).collect();
+    assert_eq!(blocks.len(), 3);
+    for block in blocks {
+        let loaded = match mavtables::config::load(block) {
+            Ok(l) => l,
+            Err(e) => panic!("{}", mavtables::config::render_errors("doc", block, &e)),
+        };
+        let keyed = loaded.config.interfaces.iter().filter(|i| i.signing().is_some());
+        assert!(keyed.count() >= 1, "every deployment has a key:\n{block}");
+    }
+}

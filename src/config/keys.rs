@@ -10,9 +10,12 @@ use std::path::Path;
 /// The signing key of each of `config.interfaces` (same order; `None` for an interface
 /// without `signing_key`), or one error per key that could not be read. `src` is the
 /// source `config` was loaded from, for locating the errors. Relative paths are taken
-/// from the current directory.
+/// from the current directory. Files in `$CREDENTIALS_DIRECTORY` are not refused for
+/// their mode (see [`SigningKey::read_file_trusting`]).
 pub fn read_keys(config: &Config, src: &str) -> Result<Vec<Option<SigningKey>>, Vec<Diagnostic>> {
     let spans = key_spans(src);
+    // systemd's `LoadCredential=` directory: private to the service whatever the modes.
+    let credentials = std::env::var_os("CREDENTIALS_DIRECTORY").map(std::path::PathBuf::from);
     let mut keys = Vec::with_capacity(config.interfaces.len());
     let mut errors = Vec::new();
     for (i, iface) in config.interfaces.iter().enumerate() {
@@ -20,7 +23,7 @@ pub fn read_keys(config: &Config, src: &str) -> Result<Vec<Option<SigningKey>>, 
             keys.push(None);
             continue;
         };
-        match SigningKey::read_file(Path::new(&signing.key_file)) {
+        match SigningKey::read_file_trusting(Path::new(&signing.key_file), credentials.as_deref()) {
             Ok(key) => keys.push(Some(key)),
             Err(e) => {
                 // The statement that named this file; the start of the file if the

@@ -15,6 +15,7 @@ mod log;
 mod resolve;
 mod runtime;
 mod serial;
+mod state_file;
 mod stream;
 #[allow(unsafe_code)]
 mod sys;

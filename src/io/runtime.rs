@@ -10,7 +10,7 @@
 use std::io;
 use std::os::fd::{AsRawFd, RawFd};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token, Waker};
@@ -21,12 +21,16 @@ use slab::Slab;
 use super::driver::{Driver, Progress};
 use super::log::{self, Logger};
 use super::serial::SerialDriver;
+use super::state_file::StateFile;
 use super::sys::TimerFd;
 use super::tcp::{self, TcpListenerDriver, TcpStreamDriver};
 use super::udp::UdpDriver;
 use crate::config::{Config, Interface};
 use crate::dialect::DIALECT_NAME;
 use crate::routing::{Engine, InterfaceId, Notice, RouterOptions, Timestamp};
+use crate::signing::SigningKey;
+use crate::signing::clock::units_from_unix;
+use crate::signing::state::SAVE_INTERVAL_SECS;
 
 /// Token of the signal pipe (driver tokens are slab keys, far below).
 const SIGNALS: Token = Token(usize::MAX - 1);
@@ -64,11 +68,39 @@ struct Runtime {
     signals: Signals,
     logger: Logger,
     start: Instant,
+    /// Where the signing state is saved (only when some interface has a key).
+    state_file: Option<StateFile>,
+    /// When the signing state is saved next if it changed.
+    next_state_save: Timestamp,
 }
 
 impl Runtime {
     fn now(&self) -> Timestamp {
         Timestamp::new(self.start.elapsed())
+    }
+
+    /// Tells the core the wall clock (for signature timestamps) and saves the signing
+    /// state if it changed and the last save is [`SAVE_INTERVAL_SECS`] old.
+    fn keep_signing_state(&mut self, now: Timestamp) {
+        let Some(file) = &self.state_file else {
+            return;
+        };
+        self.engine.set_wall_clock(now, wall_clock());
+        if now < self.next_state_save {
+            return;
+        }
+        self.next_state_save = now + Duration::from_secs(SAVE_INTERVAL_SECS);
+        if let Some(state) = self.engine.signing_state(false) {
+            file.save(&state);
+        }
+    }
+
+    /// Writes the signing state a last time, marked as written at a clean exit.
+    fn save_signing_state_at_exit(&mut self) {
+        if let Some(file) = self.state_file.take() {
+            let last = self.engine.signing_state(true);
+            file.finish(last.as_ref());
+        }
     }
 
     /// Watches `key`'s descriptor with the interest it needs now.
@@ -296,6 +328,7 @@ impl Runtime {
                     }
                 }
             }
+            self.keep_signing_state(now);
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
@@ -314,15 +347,15 @@ impl Runtime {
     }
 }
 
-/// Runs the router for `config` with log level `loglevel` until SIGINT or SIGTERM.
+/// Runs the router for `config`, with `keys` (the signing key of each of its interfaces,
+/// in order) and log level `loglevel`, until SIGINT or SIGTERM.
 /// Returns the process exit status: 0 after a clean shutdown, 1 if it could not start
-/// (a UDP port that cannot be bound; serial devices are retried instead). `keys` holds
-/// the signing key of each of `config.interfaces`, in order.
-pub fn run(config: &Config, keys: &[Option<crate::signing::SigningKey>], loglevel: u8) -> u8 {
-    let _ = keys;
-    let status = match start(config, loglevel) {
+/// (a UDP port that cannot be bound; serial devices are retried instead).
+pub fn run(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> u8 {
+    let status = match start(config, keys, loglevel) {
         Ok(mut rt) => {
             let result = rt.run();
+            rt.save_signing_state_at_exit();
             rt.handle_notices(rt.now());
             rt.logger.flush();
             log::stderr_text(&rt.engine.report());
@@ -358,7 +391,44 @@ fn options(config: &Config, loglevel: u8) -> RouterOptions {
     }
 }
 
-fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
+/// The wall clock in signature time (10 µs units since 2015-01-01 UTC).
+fn wall_clock() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, units_from_unix)
+}
+
+/// Gives interface `id` — the `index`th of the configuration — its signing key, if it
+/// has one; the link id of the router's signatures there is `index`.
+fn set_signing(
+    engine: &mut Engine,
+    id: InterfaceId,
+    index: usize,
+    iface: &Interface,
+    keys: &[Option<SigningKey>],
+) {
+    if let (Some(Some(key)), Some(s)) = (keys.get(index), iface.signing()) {
+        let link_id = u8::try_from(index % 256).unwrap_or(0);
+        engine.set_signing(id, key.clone(), s.allow_unsigned, link_id);
+    }
+}
+
+/// Opens the signing state file (when some interface has a key) and gives the core what
+/// it saved.
+fn open_state_file(config: &Config, engine: &mut Engine) -> Option<StateFile> {
+    if !engine.has_signing_keys() {
+        return None;
+    }
+    let path = config.signing_state_path(|k| std::env::var(k).ok())?;
+    let (file, saved) = StateFile::open(path);
+    engine.set_wall_clock(Timestamp::ZERO, wall_clock());
+    if let Some(state) = saved {
+        engine.restore_signing_state(&state);
+    }
+    Some(file)
+}
+
+fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Result<Runtime> {
     let poll = Poll::new()?;
     let mut engine = Engine::new(config, options(config, loglevel));
     let logger = Logger::new(loglevel);
@@ -366,7 +436,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     let waker = Arc::new(Waker::new(poll.registry(), WAKER)?);
     let mut drivers: Vec<Box<dyn Driver>> = Vec::new();
     // Serial links first, in file order (the original's link order), with preloads.
-    for iface in &config.interfaces {
+    for (index, iface) in config.interfaces.iter().enumerate() {
         if let Interface::Serial(s) = iface {
             let id = engine.add_stream_interface(
                 &s.device,
@@ -375,10 +445,11 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                 s.max_bitrate.unwrap_or(0),
                 Timestamp::ZERO,
             );
+            set_signing(&mut engine, id, index, iface, keys);
             drivers.push(Box::new(SerialDriver::new(s, id)));
         }
     }
-    for iface in &config.interfaces {
+    for (index, iface) in config.interfaces.iter().enumerate() {
         match iface {
             Interface::Serial(_) => {}
             Interface::Udp(u) => {
@@ -393,6 +464,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                         Timestamp::ZERO,
                     ),
                 };
+                set_signing(&mut engine, id, index, iface, keys);
                 drivers.push(Box::new(UdpDriver::new(u, id, waker.clone())?));
             }
             Interface::Tcp(t) => {
@@ -401,11 +473,13 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
                 match &t.connect {
                     None => {
                         let id = engine.add_listener(label, t.peers.clone());
+                        set_signing(&mut engine, id, index, iface, keys);
                         drivers.push(Box::new(TcpListenerDriver::bind(t, id)?));
                     }
                     Some(remote) => {
                         let name = format!("tcp:{remote}");
                         let id = engine.add_stream_client(label, &name, rate, Timestamp::ZERO);
+                        set_signing(&mut engine, id, index, iface, keys);
                         drivers.push(Box::new(TcpStreamDriver::client(t, id, waker.clone())));
                     }
                 }
@@ -421,6 +495,7 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
     if config.interfaces.is_empty() {
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
+    let state_file = open_state_file(config, &mut engine);
     let mut rt = Runtime {
         poll,
         engine,
@@ -431,6 +506,8 @@ fn start(config: &Config, loglevel: u8) -> io::Result<Runtime> {
         signals,
         logger,
         start,
+        state_file,
+        next_state_save: Timestamp::ZERO,
     };
     for driver in drivers {
         rt.add(driver, false);

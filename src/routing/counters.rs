@@ -4,6 +4,7 @@
 use std::fmt;
 
 use super::admission::Refused;
+use crate::signing::SigningCounters;
 use crate::wire::ParserStats;
 
 /// What went through one link.
@@ -21,6 +22,8 @@ pub struct LinkCounters {
     pub send_errors: u64,
     /// Frames from the link dropped for a bad checksum.
     pub bad_crc: u64,
+    /// Signatures checked, refused and added (links of interfaces with a key).
+    pub signing: SigningCounters,
 }
 
 impl LinkCounters {
@@ -66,7 +69,11 @@ impl fmt::Display for LinkReport<'_> {
             c.send_errors,
             self.queue_high_water,
             c.bad_crc
-        )
+        )?;
+        if !c.signing.is_zero() {
+            write!(f, ", {}", c.signing)?;
+        }
+        Ok(())
     }
 }
 
@@ -80,6 +87,8 @@ pub struct InterfaceReport<'a> {
     pub io_errors: u64,
     /// Remotes a server refused.
     pub refused: Refused,
+    /// What signing did, if the interface has a key.
+    pub signing: Option<SigningCounters>,
 }
 
 impl fmt::Display for InterfaceReport<'_> {
@@ -96,6 +105,9 @@ impl fmt::Display for InterfaceReport<'_> {
                 ", {} refused (not allowed), {} refused (max_peers)",
                 r.not_allowed, r.full
             )?;
+        }
+        if let Some(s) = self.signing {
+            write!(f, ", {s}")?;
         }
         Ok(())
     }

@@ -44,6 +44,9 @@ use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::{Config, PeerLimits};
+use crate::signing::sign;
+use crate::signing::state::SavedState;
+use crate::signing::{Edge, Signing, SigningKey};
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);
@@ -111,6 +114,7 @@ pub struct Engine {
     notices: VecDeque<Notice>,
     unknown: UnknownIds,
     next_tick: Timestamp,
+    signing: Signing,
 }
 
 impl Engine {
@@ -123,6 +127,7 @@ impl Engine {
             notices: VecDeque::new(),
             unknown: UnknownIds::default(),
             next_tick: Timestamp::ZERO + TICK,
+            signing: Signing::default(),
         }
     }
 
@@ -278,17 +283,66 @@ impl Engine {
             return None;
         }
         *connections += 1;
+        let edge = server.signing.as_ref().map(Edge::fresh_copy);
         let name = format!("tcp:{peer}");
         let link = self.router.add_connection_link(&name, now);
         self.notices.push_back(Notice::LinkAdded {
             id: link,
             name: name.clone(),
         });
-        Some(self.push_interface(Interface::network(
+        let mut connection = Interface::network(
             name,
             max_bitrate,
             Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),
-        )))
+        );
+        connection.signing = edge;
+        Some(self.push_interface(connection))
+    }
+
+    /// Gives interface `id` a signing key: signed frames arriving there are checked
+    /// with it (and unsigned ones dropped unless `allow_unsigned`), and unsigned
+    /// MAVLink 2 frames leaving there are signed with it and `link_id`. A server's
+    /// connections take its key.
+    pub fn set_signing(
+        &mut self,
+        id: InterfaceId,
+        key: SigningKey,
+        allow_unsigned: bool,
+        link_id: u8,
+    ) {
+        let key_slot = self.signing.add_key(key);
+        if let Some(interface) = self.interfaces.get_mut(id.0) {
+            interface.signing = Some(Edge {
+                key_slot,
+                allow_unsigned,
+                link_id,
+                counters: Default::default(),
+                said: Vec::new(),
+            });
+        }
+    }
+
+    /// Notes the wall clock for signing: at `now` it read `units` (MAVLink signature
+    /// time, 10 µs units since 2015-01-01 UTC). Call it at start and about once a second.
+    pub fn set_wall_clock(&mut self, now: Timestamp, units: u64) {
+        self.signing.set_wall_clock(now, units);
+    }
+
+    /// True when some interface has a signing key (so there is signing state to keep).
+    pub fn has_signing_keys(&self) -> bool {
+        self.signing.has_keys()
+    }
+
+    /// Takes over signing state saved by an earlier run (after every
+    /// [`Engine::set_signing`]); returns how many streams it knew.
+    pub fn restore_signing_state(&mut self, state: &SavedState) -> usize {
+        self.signing.restore(state)
+    }
+
+    /// The signing state to save, if it changed since the last call (always when
+    /// `clean`: the router is stopping).
+    pub fn signing_state(&mut self, clean: bool) -> Option<SavedState> {
+        self.signing.take_state(clean)
     }
 
     fn push_interface(&mut self, interface: Interface) -> InterfaceId {
@@ -316,6 +370,7 @@ impl Engine {
             kind,
             refused,
             described,
+            signing: edge,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
@@ -371,6 +426,9 @@ impl Engine {
             unknown: &mut self.unknown,
             now,
             sender,
+            edge: edge.as_mut(),
+            signing: &mut self.signing,
+            described,
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -380,7 +438,12 @@ impl Engine {
     /// Routes the frames completed by `bytes`, read from stream interface `id`.
     pub fn handle_stream(&mut self, id: InterfaceId, bytes: &[u8], now: Timestamp) {
         let Some(Interface {
-            parser, tail, kind, ..
+            parser,
+            tail,
+            kind,
+            signing: edge,
+            described,
+            ..
         }) = self.interfaces.get_mut(id.0)
         else {
             return;
@@ -401,6 +464,9 @@ impl Engine {
             unknown: &mut self.unknown,
             now,
             sender: Sender::Stream(link),
+            edge: edge.as_mut(),
+            signing: &mut self.signing,
+            described,
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -438,22 +504,40 @@ impl Engine {
             pacer,
             pace_deadline,
             kind,
+            signing: edge,
             ..
         } = interface;
         *pace_deadline = None;
         let unpaced = pacer.rate() == 0;
         let router = &mut self.router;
+        let signing = &mut self.signing;
         let mut left = room;
-        // Takes the next packet of `link` if the pacer lets it go now.
+        // Takes the next packet of `link` if the pacer lets it go now, signed if the
+        // interface has a key.
         let mut take = |router: &mut Router, link: LinkId| -> Result<Option<Packet>, Timestamp> {
-            let Some(len) = router.peek(link).map(|p| p.len()) else {
+            let Some(len) = router.peek(link).map(|p| match edge {
+                Some(_) => sign::signed_len(p),
+                None => p.len(),
+            }) else {
                 return Ok(None);
             };
             if let Pace::At(t) = pacer.check(now, len) {
                 return Err(t);
             }
             pacer.sent(now, len);
-            Ok(router.pop(link))
+            let packet = router.pop(link);
+            let Some(edge) = edge.as_mut() else {
+                return Ok(packet);
+            };
+            let signed = packet.as_deref().and_then(|p| signing.sign(edge, p, now));
+            let Some(signed) = signed else {
+                return Ok(packet);
+            };
+            edge.counters.signed_out += 1;
+            if let Some(c) = router.counters_mut(link) {
+                c.signing.signed_out += 1;
+            }
+            Ok(Some(signed))
         };
         match kind {
             Kind::Datagram { remotes, .. } => {
@@ -711,7 +795,12 @@ impl Engine {
                 self.notices.push_back(Notice::Open(InterfaceId(index)));
             }
             let Interface {
-                parser, tail, kind, ..
+                parser,
+                tail,
+                kind,
+                signing: edge,
+                described,
+                ..
             } = interface;
             let stale = open
                 && tail
@@ -745,6 +834,9 @@ impl Engine {
                     unknown: &mut self.unknown,
                     now,
                     sender,
+                    edge: edge.as_mut(),
+                    signing: &mut self.signing,
+                    described,
                 });
             }
         }
@@ -813,6 +905,7 @@ impl Engine {
                 parser: &parser,
                 io_errors: i.io_errors,
                 refused: i.refused,
+                signing: i.signing.as_ref().map(|e| e.counters),
             };
             text.push_str(&format!("  {line}\n"));
         }

@@ -1,5 +1,7 @@
-//! Frames from a parser into the router: the sender's link (a datagram remote gets one on
-//! its first valid frame), counters, and unknown message ids reported once per id.
+//! Frames from a parser into the router: the signing check of an interface with a key
+//! (a refused frame never reaches the router, and a datagram remote whose frames are all
+//! refused never becomes a link), the sender's link (a datagram remote gets one on its
+//! first valid frame), counters, and unknown message ids reported once per id.
 
 use std::collections::{HashSet, VecDeque};
 use std::net::SocketAddr;
@@ -9,6 +11,8 @@ use super::link::LinkId;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
 use super::time::Timestamp;
+use crate::signing::clock::UNITS_PER_SEC;
+use crate::signing::{Admission, Edge, Refusal, Signing};
 use crate::wire::{Frame, ParseEvents, Rejection};
 
 /// How many distinct unknown ids are reported; beyond that they are only counted, so a
@@ -63,6 +67,12 @@ pub struct Intake<'a> {
     pub now: Timestamp,
     /// Where the bytes came from.
     pub sender: Sender<'a>,
+    /// The interface's signing settings and counters, if it has a key.
+    pub edge: Option<&'a mut Edge>,
+    /// The router's keys, streams and clock.
+    pub signing: &'a mut Signing,
+    /// How messages name the interface.
+    pub described: &'a str,
 }
 
 impl Intake<'_> {
@@ -84,6 +94,26 @@ impl Intake<'_> {
         }
     }
 
+    /// Counts a refused frame (on the interface, and on the sender's link if it has one)
+    /// and says the first of each reason.
+    fn refuse(&mut self, frame: &Frame<'_>, why: Refusal) {
+        let Some(edge) = self.edge.as_deref_mut() else {
+            return;
+        };
+        edge.counters.refused(why);
+        let first = edge.first_time(why);
+        if let Some(c) = self
+            .existing_link()
+            .and_then(|id| self.router.counters_mut(id))
+        {
+            c.signing.refused(why);
+        }
+        if first {
+            let text = refusal_text(self.described, frame, why, self.signing.clock(self.now));
+            self.notices.push_back(Notice::Warning(text));
+        }
+    }
+
     fn existing_link(&self) -> Option<LinkId> {
         match &self.sender {
             Sender::Stream(id) => Some(*id),
@@ -95,8 +125,26 @@ impl Intake<'_> {
 impl ParseEvents for Intake<'_> {
     #[inline]
     fn frame(&mut self, frame: Frame<'_>) {
+        let signed = match self.edge.as_deref_mut() {
+            None => false,
+            Some(edge) => match self.signing.admit(edge, &frame, self.now) {
+                Admission::Signed => {
+                    edge.counters.verified += 1;
+                    true
+                }
+                Admission::Unsigned => false,
+                Admission::Refused(why) => {
+                    self.refuse(&frame, why);
+                    return;
+                }
+            },
+        };
         let id = self.link();
-        self.router.receive(id, &frame, self.now, self.out);
+        if signed && let Some(c) = self.router.counters_mut(id) {
+            c.signing.verified += 1;
+        }
+        self.router
+            .receive_as(id, &frame, signed, self.now, self.out);
     }
 
     fn rejected(&mut self, _offset: u64, why: Rejection) {
@@ -113,6 +161,34 @@ impl ParseEvents for Intake<'_> {
             _ => {}
         }
     }
+}
+
+/// The warning for the first frame an interface refuses for `why`.
+fn refusal_text(described: &str, frame: &Frame<'_>, why: Refusal, clock: u64) -> String {
+    let from = frame.source();
+    let what = match why {
+        Refusal::BadSignature => {
+            format!("a frame from {from} with a bad signature (signed with another key?)")
+        }
+        Refusal::Replayed => format!(
+            "a replayed frame from {from} (its signature timestamp is not after the last one of its stream)"
+        ),
+        Refusal::OutOfWindow => {
+            let ts = frame.signature().map_or(0, |s| s.timestamp());
+            let (secs, side) = if ts > clock {
+                ((ts - clock) / UNITS_PER_SEC, "ahead of")
+            } else {
+                ((clock - ts) / UNITS_PER_SEC, "behind")
+            };
+            format!(
+                "a signed frame from {from} whose timestamp is {secs} s {side} this router's clock (more than 60 s; is a clock wrong?)"
+            )
+        }
+        Refusal::Unsigned => format!(
+            "an unsigned frame from {from} (the interface has a signing_key and no allow_unsigned)"
+        ),
+    };
+    format!("{described}: refused {what}; further ones are only counted")
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use super::remotes::Remotes;
 use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::config::PeerLimits;
+use crate::signing::Edge;
 use crate::wire::{Parser, ParserStats};
 
 /// Identifies an interface of an [`Engine`](super::Engine) for as long as it exists (the
@@ -170,6 +171,8 @@ pub struct Interface {
     pub refused: Refused,
     /// Datagram or stream, server or client.
     pub kind: Kind,
+    /// Its signing key, policy and counters, if it has a key.
+    pub signing: Option<Edge>,
 }
 
 impl Interface {
@@ -186,6 +189,7 @@ impl Interface {
             io_errors: 0,
             refused: Refused::default(),
             kind,
+            signing: None,
         }
     }
 

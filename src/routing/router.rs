@@ -204,10 +204,24 @@ impl Router {
         self.links.iter()
     }
 
-    /// Routes `frame`, received on link `source` at `now`: learns its source address,
-    /// then offers it to every link in creation order and queues it where accepted. A
-    /// frame from an unknown link is ignored.
+    /// Routes `frame`, received on link `source` at `now`, as an unsigned frame (see
+    /// [`Router::receive_as`]).
     pub fn receive(&mut self, source: LinkId, frame: &Frame<'_>, now: Timestamp, out: &mut Output) {
+        self.receive_as(source, frame, false, now, out);
+    }
+
+    /// Routes `frame`, received on link `source` at `now` and `signed` (its signature
+    /// verified by the router) or not: learns its source address, then offers it to
+    /// every link in creation order and queues it where accepted. A frame from an
+    /// unknown link is ignored.
+    pub fn receive_as(
+        &mut self,
+        source: LinkId,
+        frame: &Frame<'_>,
+        signed: bool,
+        now: Timestamp,
+        out: &mut Output,
+    ) {
         let Some(si) = self.index(source) else {
             return;
         };
@@ -244,7 +258,7 @@ impl Router {
                 message_id,
                 src,
                 target,
-                false,
+                signed,
             );
             match decision {
                 Decision::Silent => {}

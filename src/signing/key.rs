@@ -66,13 +66,25 @@ impl SigningKey {
     /// as good as public. A file that is missing, not a regular file, unreadable or empty
     /// is an error too. No error ever shows what the file holds.
     pub fn read_file(path: &Path) -> Result<SigningKey, KeyError> {
+        SigningKey::read_file_trusting(path, None)
+    }
+
+    /// [`SigningKey::read_file`], except that a file inside `private_dir` is not refused
+    /// for its mode: systemd's credentials directory (`$CREDENTIALS_DIRECTORY`, filled
+    /// by `LoadCredential=`) is private to the service already, and systemd grants the
+    /// service's user access to each file with an ACL, which shows as group bits.
+    pub fn read_file_trusting(
+        path: &Path,
+        private_dir: Option<&Path>,
+    ) -> Result<SigningKey, KeyError> {
         let fail = |problem| KeyError::new(Some(path), problem);
         let meta = std::fs::metadata(path).map_err(|e| fail(Problem::from_io(&e)))?;
         if !meta.is_file() {
             return Err(fail(Problem::NotAFile));
         }
         let mode = file_mode(&meta);
-        if mode & 0o077 != 0 {
+        let private = private_dir.is_some_and(|dir| inside(path, dir));
+        if mode & 0o077 != 0 && !private {
             return Err(fail(Problem::OpenToOthers { mode }));
         }
         let contents = std::fs::read(path).map_err(|e| fail(Problem::from_io(&e)))?;
@@ -95,6 +107,14 @@ impl SigningKey {
 impl fmt::Debug for SigningKey {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str("SigningKey(<secret>)")
+    }
+}
+
+/// True if `path` (followed to the real file) lies in directory `dir`.
+fn inside(path: &Path, dir: &Path) -> bool {
+    match (std::fs::canonicalize(path), std::fs::canonicalize(dir)) {
+        (Ok(p), Ok(d)) => p.starts_with(d),
+        _ => false,
     }
 }
 
@@ -304,6 +324,26 @@ mod tests {
         let e = SigningKey::parse(b"\xff\xfesecret").expect_err("binary");
         assert!(e.summary().contains("neither 64 hexadecimal digits"));
         assert!(!e.to_string().contains("secret"));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_file_in_the_credentials_directory_may_show_group_bits() {
+        use std::os::unix::fs::PermissionsExt;
+        let base = std::env::temp_dir().join(format!("mavtables-creds-{}", std::process::id()));
+        let creds = base.join("credentials");
+        std::fs::create_dir_all(&creds).expect("dir");
+        let inner = creds.join("gcs.key");
+        let outer = base.join("gcs.key");
+        for f in [&inner, &outer] {
+            std::fs::write(f, "secret words\n").expect("write");
+            std::fs::set_permissions(f, std::fs::Permissions::from_mode(0o440)).expect("mode");
+        }
+        let trusted = Some(creds.as_path());
+        assert!(SigningKey::read_file_trusting(&inner, trusted).is_ok());
+        assert!(SigningKey::read_file_trusting(&outer, trusted).is_err());
+        assert!(SigningKey::read_file(&inner).is_err());
+        let _ = std::fs::remove_dir_all(&base);
     }
 
     #[test]

@@ -1,10 +1,20 @@
 //! MAVLink 2 signing at the router's edge: the keys interfaces are given ([`key`]), the
 //! check of signed frames that arrive and the replay protection of their timestamps
 //! ([`verify`], [`streams`]), the signatures the router adds to frames it sends ([`sign`]),
-//! the router's own signing clock ([`clock`]) and the saved stream table that outlives a
-//! restart ([`state`]). All of it is sans-IO: time comes in as arguments, state goes out
-//! as bytes for the I/O layer to write.
+//! the router's own signing clock ([`clock`]), the saved stream table that outlives a
+//! restart ([`state`]), and how the routing core holds all of it ([`edge`]). All of it is
+//! sans-IO: time comes in as arguments, state goes out as text for the I/O layer to write.
 
+pub mod clock;
+pub mod counters;
+pub mod edge;
 pub mod key;
+pub mod sign;
+pub mod state;
+pub mod streams;
+pub mod verify;
 
+pub use counters::SigningCounters;
+pub use edge::{Edge, Signing};
 pub use key::{KeyError, SigningKey};
+pub use verify::{Admission, Refusal};

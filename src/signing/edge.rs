@@ -1,0 +1,168 @@
+//! Signing as the routing core runs it: each keyed interface's settings and counters
+//! ([`Edge`]), and what the whole router shares ([`Signing`]): the keys, the stream
+//! table, the clock, and whether the saved state is behind.
+
+use super::clock::SigningClock;
+use super::counters::SigningCounters;
+use super::key::SigningKey;
+use super::sign::{sign, wants_signature};
+use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
+use super::streams::{StreamId, StreamTable};
+use super::verify::{Admission, Check, Refusal};
+use crate::routing::{Packet, Timestamp};
+use crate::wire::Frame;
+
+/// The signing settings of one interface with a key, and what it counted.
+#[derive(Debug, Clone)]
+pub struct Edge {
+    /// Slot of its key in [`Signing`]'s key list.
+    pub key_slot: usize,
+    /// Whether unsigned frames are taken in.
+    pub allow_unsigned: bool,
+    /// The link id of the signatures the router adds here.
+    pub link_id: u8,
+    /// What was checked, refused and signed here.
+    pub counters: SigningCounters,
+    /// Refusal reasons already said in the log (each once per interface).
+    pub said: Vec<Refusal>,
+}
+
+impl Edge {
+    /// A fresh edge with the same settings and nothing counted (for a connection a keyed
+    /// server accepts).
+    pub fn fresh_copy(&self) -> Edge {
+        Edge {
+            counters: SigningCounters::default(),
+            said: Vec::new(),
+            ..self.clone()
+        }
+    }
+
+    /// True the first time `why` is seen here.
+    pub fn first_time(&mut self, why: Refusal) -> bool {
+        if self.said.contains(&why) {
+            return false;
+        }
+        self.said.push(why);
+        true
+    }
+}
+
+/// Keys, stream table and clock shared by every interface of the router.
+#[derive(Debug, Default)]
+pub struct Signing {
+    keys: Vec<SigningKey>,
+    streams: StreamTable,
+    clock: SigningClock,
+    changed: bool,
+}
+
+impl Signing {
+    /// The slot of `key`, added if new (interfaces with the same key share its streams,
+    /// so a frame taken in on one cannot be replayed on another).
+    pub fn add_key(&mut self, key: SigningKey) -> usize {
+        if let Some(i) = self.keys.iter().position(|k| *k == key) {
+            return i;
+        }
+        self.keys.push(key);
+        self.keys.len() - 1
+    }
+
+    /// True when some interface has a key.
+    pub fn has_keys(&self) -> bool {
+        !self.keys.is_empty()
+    }
+
+    /// Notes the wall clock: at `now` it read `units` of signature time.
+    pub fn set_wall_clock(&mut self, now: Timestamp, units: u64) {
+        self.clock.set_wall(now, units);
+    }
+
+    /// The signing clock at `now` (10 µs units since 2015).
+    pub fn clock(&self, now: Timestamp) -> u64 {
+        self.clock.now(now)
+    }
+
+    /// Checks `frame`, arrived at `now` on an interface with `edge`.
+    pub fn admit(&mut self, edge: &Edge, frame: &Frame<'_>, now: Timestamp) -> Admission {
+        let Some(key) = self.keys.get(edge.key_slot) else {
+            return Admission::Refused(Refusal::BadSignature);
+        };
+        let check = Check {
+            key,
+            key_slot: edge.key_slot,
+            allow_unsigned: edge.allow_unsigned,
+            clock: self.clock.now(now),
+        };
+        let admission = check.admit(frame, &mut self.streams);
+        if admission == Admission::Signed {
+            self.changed = true;
+        }
+        admission
+    }
+
+    /// `frame` signed for sending at `now` out of an interface with `edge`, or `None` if
+    /// it goes as it is (already signed, MAVLink 1).
+    pub fn sign(&mut self, edge: &Edge, frame: &[u8], now: Timestamp) -> Option<Packet> {
+        if !wants_signature(frame) {
+            return None;
+        }
+        let key = self.keys.get(edge.key_slot)?;
+        let timestamp = self.clock.issue(now);
+        self.changed = true;
+        sign(frame, key, edge.link_id, timestamp)
+    }
+
+    /// Takes over a saved state: the clock floor, and the streams of keys still in use
+    /// (raised by [`UNCLEAN_MARGIN`] if the file was not written at a clean exit).
+    /// Returns how many streams were taken.
+    pub fn restore(&mut self, state: &SavedState) -> usize {
+        self.clock.raise_floor(state.clock);
+        let margin = if state.clean { 0 } else { UNCLEAN_MARGIN };
+        let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
+        let mut n = 0;
+        for s in &state.streams {
+            let Some(key) = prints.iter().position(|p| *p == s.key) else {
+                continue;
+            };
+            let id = StreamId {
+                key,
+                link_id: s.link_id,
+                system: s.system,
+                component: s.component,
+            };
+            self.streams.record(id, s.timestamp.saturating_add(margin));
+            n += 1;
+        }
+        n
+    }
+
+    /// The state to save, if it changed since the last call (or always when `clean`:
+    /// the router is stopping and nothing is accepted after it).
+    pub fn take_state(&mut self, clean: bool) -> Option<SavedState> {
+        if !self.has_keys() || !(self.changed || clean) {
+            return None;
+        }
+        self.changed = false;
+        let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
+        let streams = self
+            .streams
+            .snapshot()
+            .into_iter()
+            .filter_map(|(id, timestamp)| {
+                Some(SavedStream {
+                    key: *prints.get(id.key)?,
+                    link_id: id.link_id,
+                    system: id.system,
+                    component: id.component,
+                    timestamp,
+                })
+            })
+            .collect();
+        Some(SavedState {
+            clean,
+            clock: self.clock.floor(),
+            streams,
+        })
+    }
+}
