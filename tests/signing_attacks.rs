@@ -568,12 +568,13 @@ fn signed_with_another_key_is_refused() {
     assert!(count_of(&counts, "bad") >= 40, "{counts:?}");
 }
 
-/// Forged frames a millisecond: 100 (100,000 a second) against an optimised router; 40
-/// against the unoptimised one of a debug build (`cargo test` without `--release`),
-/// whose SHA-256 alone cannot keep up with 100,000 a second on a small machine (on 2
-/// CPUs it checks about 95,000 a second, and the kernel drops the rest, valid frames
-/// among them).
-const FORGED_PER_MS: u64 = if cfg!(debug_assertions) { 40 } else { 100 };
+/// Forged frames a millisecond: 100 (100,000 a second) against an optimised router
+/// (`cargo test --release`); 25 against the unoptimised one of a debug build, whose
+/// SHA-256 alone checks only about 95,000 frames a second on 2 CPUs, so that at 40,000 a
+/// second a loaded machine (another job's benchmark beside it) still made it lose a
+/// burst of valid frames in the kernel about one run in eight; at 25,000 the socket
+/// buffer covers such stalls.
+const FORGED_PER_MS: u64 = if cfg!(debug_assertions) { 25 } else { 100 };
 
 /// About 100,000 forged frames a second (see [`FORGED_PER_MS`]) for 3 s — random
 /// signatures on random streams, replays, other keys, unsigned — from one socket, while
