@@ -77,7 +77,11 @@ fn the_signing_deployments_are_valid() {
             Ok(l) => l,
             Err(e) => panic!("{}", mavtables::config::render_errors("doc", block, &e)),
         };
-        let keyed = loaded.config.interfaces.iter().filter(|i| i.signing().is_some());
+        let keyed = loaded
+            .config
+            .interfaces
+            .iter()
+            .filter(|i| i.signing().is_some());
         assert!(keyed.count() >= 1, "every deployment has a key:\n{block}");
     }
 }

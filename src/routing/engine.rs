@@ -753,6 +753,9 @@ impl Engine {
         if let Some(server) = self.interfaces.get_mut(server.0) {
             server.closed_parsers += *closed.parser.stats();
             server.io_errors += closed.io_errors;
+            if let (Some(total), Some(edge)) = (server.signing.as_mut(), &closed.signing) {
+                total.counters += edge.counters;
+            }
             if let Kind::Listener { connections, .. } = &mut server.kind {
                 *connections = connections.saturating_sub(1);
             }

@@ -44,6 +44,17 @@ impl SigningCounters {
     }
 }
 
+impl std::ops::AddAssign for SigningCounters {
+    fn add_assign(&mut self, other: SigningCounters) {
+        self.verified += other.verified;
+        self.bad_signature += other.bad_signature;
+        self.replayed += other.replayed;
+        self.out_of_window += other.out_of_window;
+        self.unsigned += other.unsigned;
+        self.signed_out += other.signed_out;
+    }
+}
+
 impl fmt::Display for SigningCounters {
     /// `signing: 5 verified, 1 bad signature, 2 replayed, 1 out of window, 3 unsigned
     /// dropped, 7 signed`.

@@ -194,13 +194,27 @@ pub struct Router {
     pub config: PathBuf,
 }
 
+/// The optimised router that `scripts/test` builds (`cargo build --release`) and names in
+/// `MAVTABLES_RELEASE_ROUTER`, for tests of what users run at full rate; `None` when the
+/// tests run without it (plain `cargo test`).
+pub fn release_binary() -> Option<String> {
+    std::env::var("MAVTABLES_RELEASE_ROUTER")
+        .ok()
+        .filter(|p| std::path::Path::new(p).is_file())
+}
+
 impl Router {
     /// Writes `config` to the scratch directory and starts `mavtables --config FILE
     /// --loglevel LEVEL`. Returns once every `udp` port the config names is bound.
     pub fn start(scratch: &Scratch, config: &str, loglevel: u8) -> Router {
+        Router::start_binary(BIN, scratch, config, loglevel)
+    }
+
+    /// [`Router::start`] with the binary at `bin` (e.g. [`release_binary`]).
+    pub fn start_binary(bin: &str, scratch: &Scratch, config: &str, loglevel: u8) -> Router {
         let path = scratch.dir.join("mavtables.conf");
         std::fs::write(&path, config).expect("write config");
-        let mut child = Command::new(BIN)
+        let mut child = Command::new(bin)
             .arg("--config")
             .arg(&path)
             .arg("--loglevel")
