@@ -3,6 +3,7 @@
 
 pub mod mavproxy;
 pub mod net;
+pub mod process;
 pub mod router;
 
 use std::path::{Path, PathBuf};
