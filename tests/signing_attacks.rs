@@ -18,8 +18,8 @@ mod common;
 mod signing;
 
 use std::net::UdpSocket;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -56,6 +56,8 @@ impl Rng {
 /// interface without a key (index 1, `udp` server `b`), a sender socket and a receiver
 /// socket the router has learned.
 struct Rig {
+    /// Whose turn it is: the flood test runs alone (see [`ALONE`]).
+    _turn: Turn,
     router: Router,
     key: Key,
     tx: UdpSocket,
@@ -63,6 +65,30 @@ struct Rig {
     a: String,
     b: String,
     rx_parser: Parser,
+}
+
+/// The flood test takes this for writing, every other test for reading, so the flood
+/// runs with no other router of this file beside it: on 2 CPUs the other tests' routers
+/// and peers are load enough to starve the flooded router for the few tens of
+/// milliseconds its socket buffer covers at 100,000 frames a second.
+static ALONE: RwLock<()> = RwLock::new(());
+
+/// A test's hold on [`ALONE`].
+enum Turn {
+    Shared(#[allow(dead_code)] RwLockReadGuard<'static, ()>),
+    Alone(#[allow(dead_code)] RwLockWriteGuard<'static, ()>),
+}
+
+impl Turn {
+    /// A turn beside the other tests (not beside the flood).
+    fn shared() -> Turn {
+        Turn::Shared(ALONE.read().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// A turn with no other test running.
+    fn alone() -> Turn {
+        Turn::Alone(ALONE.write().unwrap_or_else(PoisonError::into_inner))
+    }
 }
 
 fn interface_a(port: u16, key_path: &str, extra: &str) -> String {
@@ -73,11 +99,11 @@ impl Rig {
     /// `a_extra` goes inside the keyed block (e.g. ` allow_unsigned yes;`); `tail` after
     /// the blocks (e.g. a `signing_state` or a chain).
     fn start(s: &Scratch, a_extra: &str, tail: &str) -> Rig {
-        Rig::start_binary(BIN, s, a_extra, tail)
+        Rig::start_binary(Turn::shared(), BIN, s, a_extra, tail)
     }
 
     /// [`Rig::start`] with the router binary at `bin`.
-    fn start_binary(bin: &str, s: &Scratch, a_extra: &str, tail: &str) -> Rig {
+    fn start_binary(turn: Turn, bin: &str, s: &Scratch, a_extra: &str, tail: &str) -> Rig {
         let key = key_from(0x5c);
         let kf = hex_key_file(s, "sender.key", &key);
         let (pa, pb) = (free_udp_port(), free_udp_port());
@@ -87,6 +113,7 @@ impl Rig {
         );
         let router = Router::start_binary(bin, s, &config, 1);
         let mut rig = Rig {
+            _turn: turn,
             router,
             key,
             tx: UdpSocket::bind("127.0.0.1:0").expect("bind"),
@@ -324,6 +351,7 @@ fn replay_after_restart_is_refused() {
     }
     rig.expect_exactly(&before);
     let Rig {
+        _turn: turn,
         router,
         key,
         tx,
@@ -340,6 +368,7 @@ fn replay_after_restart_is_refused() {
     let config = std::fs::read_to_string(s.dir.join("mavtables.conf")).expect("config");
     let router = Router::start(&s, &config, 1);
     let mut rig = Rig {
+        _turn: turn,
         router,
         key,
         tx,
@@ -380,6 +409,7 @@ fn replay_after_a_crash_is_refused() {
             .is_some_and(|now| Some(&now) != initial.as_ref())
     });
     let Rig {
+        _turn: turn,
         router,
         key,
         tx,
@@ -392,6 +422,7 @@ fn replay_after_a_crash_is_refused() {
     let config = std::fs::read_to_string(s.dir.join("mavtables.conf")).expect("config");
     let router = Router::start(&s, &config, 1);
     let mut rig = Rig {
+        _turn: turn,
         router,
         key,
         tx,
@@ -601,7 +632,8 @@ fn flood_of_forgeries_costs_no_valid_frame_and_no_memory() {
             "flood at {per_ms} forged frames/ms: set MAVTABLES_RELEASE_ROUTER (scripts/test does) for 100"
         );
     }
-    let mut rig = Rig::start_binary(release.as_deref().unwrap_or(BIN), &s, "", "");
+    let bin = release.as_deref().unwrap_or(BIN);
+    let mut rig = Rig::start_binary(Turn::alone(), bin, &s, "", "");
     let pid = rig.router.pid();
     let key = rig.key;
     let mut stream = Stream::new(key, 0, 10);
@@ -767,6 +799,7 @@ fn keyed_egress(s: &Scratch, more: &str) -> (Router, Key, UdpSocket, UdpSocket, 
 /// strictly increasing timestamps of the signing clock, header and payload unchanged.
 #[test]
 fn keyed_egress_signs_v2_and_passes_v1_unchanged() {
+    let _turn = Turn::shared();
     let s = Scratch::new("sig-egress");
     let (router, key, tx, rx, a) = keyed_egress(&s, "");
     let mut sent = Vec::new();
@@ -831,6 +864,7 @@ fn keyed_egress_signs_v2_and_passes_v1_unchanged() {
 /// interface without a key (not verified there, but signed: left alone).
 #[test]
 fn already_signed_frames_pass_a_keyed_egress_byte_for_byte() {
+    let _turn = Turn::shared();
     let s = Scratch::new("sig-passthru");
     let other = key_from(0x90);
     let okf = hex_key_file(&s, "other.key", &other);
@@ -864,6 +898,7 @@ fn already_signed_frames_pass_a_keyed_egress_byte_for_byte() {
 /// messages pass.
 #[test]
 fn filter_signed_and_unsigned() {
+    let _turn = Turn::shared();
     let s = Scratch::new("sig-filter");
     let key = key_from(0x11);
     let kf = hex_key_file(&s, "sender.key", &key);
