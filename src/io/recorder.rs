@@ -334,16 +334,17 @@ impl Writer {
                 j += 1;
             }
             let end = at + usize::try_from(run).unwrap_or(usize::MAX);
-            self.write_run(bytes.get(at..end).unwrap_or_default(), (j - i) as u64);
+            self.write_run(bytes.get(at..end).unwrap_or_default(), &lens[i..j]);
             at = end;
             i = j;
         }
     }
 
-    /// Writes `count` whole records, if the disk has room for them.
-    fn write_run(&mut self, run: &[u8], count: u64) {
+    /// Writes whole records (`run`, of `lens` bytes each), if the disk has room for them.
+    fn write_run(&mut self, run: &[u8], lens: &[u32]) {
         let shared = self.shared.clone();
         let counters = &shared.counters;
+        let count = lens.len() as u64;
         if !self.make_room(run.len() as u64) {
             Counters::add(&counters.dropped_no_space, count);
             self.trouble(
@@ -356,25 +357,38 @@ impl Writer {
             Counters::add(&counters.dropped_disk, count);
             return;
         };
-        match file.write_all(run) {
+        let e = match file.write_all(run) {
             Ok(()) => {
                 self.size += run.len() as u64;
                 Counters::add(&counters.written, count);
                 Counters::add(&counters.bytes, run.len() as u64);
                 self.recovered();
+                return;
             }
-            Err(e) => {
-                // A record cut short would garble the rest of the file for its readers.
-                let _ = file.set_len(self.size);
-                Counters::add(&counters.dropped_disk, count);
-                let too_large = e.kind() == io::ErrorKind::FileTooLarge;
-                let path = self.path_text();
-                self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
-                if too_large {
-                    // A file-size limit: the next records go to a new file.
-                    self.close();
-                }
-            }
+            Err(e) => e,
+        };
+        // How far the file got, then cut back: a record cut short would garble the rest
+        // of the file for its readers.
+        let reached = file.metadata().map_or(0, |m| m.len()).max(self.size);
+        let _ = file.set_len(self.size);
+        if e.kind() == io::ErrorKind::FileTooLarge && reached < self.max_file_bytes {
+            // No file may grow beyond `reached` here (a file-size limit, FAT's 4 GiB):
+            // files are rotated at that size from now on, and these records go on in a
+            // new one. Each time the limit only shrinks, so this ends.
+            let path = self.path_text();
+            log::warn(&format_args!(
+                "recording: {path} cannot grow beyond {reached} bytes ({e}); new files are started at that size instead of max_file_bytes"
+            ));
+            self.max_file_bytes = reached;
+            self.close();
+            self.write(run, lens);
+            return;
+        }
+        Counters::add(&counters.dropped_disk, count);
+        let path = self.path_text();
+        self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
+        if e.kind() == io::ErrorKind::FileTooLarge {
+            self.close();
         }
     }
 
@@ -420,8 +434,10 @@ impl Writer {
         let mut opened = None;
         for n in 0..=MAX_SUFFIX {
             let name = self.pattern.name(&time, n);
+            // Appending: after a failed write is cut back, the next one goes at the end
+            // again (not where the failed one stopped, which would leave a hole).
             match OpenOptions::new()
-                .write(true)
+                .append(true)
                 .create_new(true)
                 .mode(0o640)
                 .open(self.dir.join(&name))
@@ -471,9 +487,7 @@ impl Writer {
             .flatten()
             .filter_map(|entry| {
                 let name = entry.file_name().into_string().ok()?;
-                if !self.pattern.matches(&name) {
-                    return None;
-                }
+                let suffix = self.pattern.suffix_of(&name)?;
                 let meta = entry.metadata().ok().filter(fs::Metadata::is_file)?;
                 let modified = meta
                     .modified()
@@ -483,6 +497,7 @@ impl Writer {
                 Some(Existing {
                     name,
                     modified,
+                    suffix,
                     bytes: meta.len(),
                 })
             })

@@ -189,32 +189,39 @@ impl FilePattern {
     /// Whether `name` (a file name, no directory) is one this pattern makes: digits where
     /// the directives are, with or without a `-N` suffix.
     pub fn matches(&self, name: &str) -> bool {
-        matches_from(&self.pieces, name.as_bytes())
+        self.suffix_of(name).is_some()
+    }
+
+    /// The suffix number of `name` (0 without one), if the pattern makes it: files opened
+    /// within one second differ only in it, and a higher one is newer.
+    pub fn suffix_of(&self, name: &str) -> Option<u32> {
+        suffix_from(&self.pieces, name.as_bytes())
     }
 }
 
-fn matches_from(pieces: &[Piece], name: &[u8]) -> bool {
+/// The suffix number if `name` matches `pieces` (0 when it has none).
+fn suffix_from(pieces: &[Piece], name: &[u8]) -> Option<u32> {
     let Some((first, rest)) = pieces.split_first() else {
-        return name.is_empty();
+        return name.is_empty().then_some(0);
     };
     match first {
-        Piece::Text(t) => name
-            .strip_prefix(t.as_bytes())
-            .is_some_and(|after| matches_from(rest, after)),
+        Piece::Text(t) => suffix_from(rest, name.strip_prefix(t.as_bytes())?),
         Piece::Field { width, .. } => {
-            name.len() >= *width
-                && name[..*width].iter().all(u8::is_ascii_digit)
-                && matches_from(rest, &name[*width..])
+            let digits = name.get(..*width)?;
+            if !digits.iter().all(u8::is_ascii_digit) {
+                return None;
+            }
+            suffix_from(rest, &name[*width..])
         }
         Piece::Suffix => {
-            if matches_from(rest, name) {
-                return true;
+            if let Some(n) = suffix_from(rest, name) {
+                return Some(n);
             }
-            let Some(after) = name.strip_prefix(b"-") else {
-                return false;
-            };
-            let digits = after.iter().take_while(|b| b.is_ascii_digit()).count();
-            digits > 0 && matches_from(rest, &after[digits..])
+            let after = name.strip_prefix(b"-")?;
+            let len = after.iter().take_while(|b| b.is_ascii_digit()).count();
+            let n = std::str::from_utf8(&after[..len]).ok()?.parse().ok()?;
+            suffix_from(rest, &after[len..])?;
+            Some(n)
         }
     }
 }
@@ -258,7 +265,7 @@ mod tests {
     fn matching_accepts_made_names_only() {
         let p = FilePattern::parse("/r/%Y-%m-%d_%H-%M-%S.tlog").expect("ok");
         for n in [0, 1, 12] {
-            assert!(p.matches(&p.name(&T, n)));
+            assert_eq!(p.suffix_of(&p.name(&T, n)), Some(n));
         }
         for other in [
             "2024-05-01_09-07-03.tlog.tmp",

@@ -1,7 +1,7 @@
 //! When a recording file is closed for a new one, and which old recordings are removed:
 //! beyond `max_files`, and while the disk has less free space than `min_free_bytes`.
-//! Oldest first (by modification time, then name); the file being written is never
-//! removed.
+//! Oldest first (by modification time, then suffix number, then name); the file being
+//! written is never removed.
 
 /// A recording found in the directory.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -10,6 +10,9 @@ pub struct Existing {
     pub name: String,
     /// Its modification time (any monotonic unit, e.g. nanoseconds since the epoch).
     pub modified: u128,
+    /// Its name's suffix number (0 without one): of two files written within one tick
+    /// of the file system's clock, the one with the higher suffix is newer.
+    pub suffix: u32,
     /// Its size in bytes.
     pub bytes: u64,
 }
@@ -26,7 +29,7 @@ fn removable<'a>(files: &'a [Existing], current: Option<&str>) -> Vec<&'a Existi
         .iter()
         .filter(|f| Some(f.name.as_str()) != current)
         .collect();
-    old.sort_by(|a, b| (a.modified, &a.name).cmp(&(b.modified, &b.name)));
+    old.sort_by(|a, b| (a.modified, a.suffix, &a.name).cmp(&(b.modified, b.suffix, &b.name)));
     old
 }
 
@@ -102,8 +105,25 @@ mod tests {
         Existing {
             name: name.to_string(),
             modified,
+            suffix: 0,
             bytes,
         }
+    }
+
+    #[test]
+    fn within_one_tick_the_suffix_orders_the_files() {
+        let mut files: Vec<Existing> = [10, 2, 0, 1]
+            .iter()
+            .map(|&n| Existing {
+                suffix: n,
+                ..file(&format!("t-{n}.tlog"), 7, 1)
+            })
+            .collect();
+        files.push(file("older.tlog", 6, 1));
+        assert_eq!(
+            over_count(&files, 2, Some("t-10.tlog")),
+            ["older.tlog", "t-0.tlog", "t-1.tlog"]
+        );
     }
 
     #[test]
