@@ -593,3 +593,162 @@ fn assert_in_order(got: &[String], sent: &[String]) {
         assert!(rest.any(|s| s == hex), "{hex} is not next in what was sent");
     }
 }
+
+/// The first line of the first error `config::load` finds in `src`, for a file `f`.
+fn first_error(src: &str) -> String {
+    match mavtables::config::load(src) {
+        Ok(_) => panic!("expected an error for {src:?}"),
+        Err(e) => mavtables::config::render_errors("f", src, &e),
+    }
+}
+
+#[test]
+fn the_record_block_prints_in_ast_like_rules() {
+    let scratch = Scratch::new("record-ast");
+    let path = scratch.dir.join("good.conf");
+    let src = "record {\n    path /tmp/r/%Y%m%d_%H%M%S.tlog;\n    max_file_bytes 2000000;\n    max_files 5;\n    min_free_bytes 0;\n    only if signed ATTITUDE from 1.0/8 to 255.0:255.0;\n    only if from 2.1;\n}\ndefault_action accept;\n";
+    fs::write(&path, src).expect("config");
+    let out = Command::new(BIN)
+        .arg("--ast")
+        .arg("--config")
+        .arg(&path)
+        .output()
+        .expect("--ast");
+    assert!(out.status.success());
+    let want = format!(
+        "===== {} =====\n\
+:001:  record\n\
+:002:  |  path /tmp/r/%Y%m%d_%H%M%S.tlog\n\
+:003:  |  max_file_bytes 2000000\n\
+:004:  |  max_files 5\n\
+:005:  |  min_free_bytes 0\n\
+:006:  |  only\n\
+:006:  |  |  condition\n\
+:006:  |  |  |  signed\n\
+:006:  |  |  |  packet_type ATTITUDE\n\
+:006:  |  |  |  source 1.0/8\n\
+:006:  |  |  |  dest 255.0:255.0\n\
+:007:  |  only\n\
+:007:  |  |  condition\n\
+:007:  |  |  |  source 2.1\n\
+:009:  default_action\n\
+:009:  |  accept\n",
+        path.display()
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout), want);
+    // And what it means.
+    let config = mavtables::config::load(src).expect("valid").config;
+    let r = config.record.expect("record");
+    assert_eq!(r.path.as_deref(), Some("/tmp/r/%Y%m%d_%H%M%S.tlog"));
+    assert_eq!(
+        (r.max_file_bytes, r.max_files, r.min_free_bytes),
+        (2_000_000, 5, 0)
+    );
+    assert_eq!(r.only.len(), 2);
+    assert_eq!(r.only[0].signed, Some(true));
+    assert_eq!(r.only[0].message_id, Some(30));
+    assert!(r.only[0].dest.is_some() && r.only[1].source.is_some());
+    // Defaults: an empty block records every frame to the logs directory.
+    let r = mavtables::config::load("record { }")
+        .expect("valid")
+        .config
+        .record
+        .expect("record");
+    assert_eq!(r, mavtables::config::Recording::with_defaults());
+    assert_eq!(
+        (r.max_file_bytes, r.max_files, r.min_free_bytes),
+        (100_000_000, 100, 100_000_000)
+    );
+    assert_eq!(
+        r.path_pattern(|_| None),
+        "/var/log/mavtables/%Y-%m-%d_%H-%M-%S.tlog"
+    );
+    assert_eq!(
+        r.path_pattern(|k| (k == "LOGS_DIRECTORY").then(|| "/var/log/mt:/other".to_string())),
+        "/var/log/mt/%Y-%m-%d_%H-%M-%S.tlog"
+    );
+}
+
+#[test]
+fn mistakes_in_the_record_block_are_located() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "record {\n    path /var/log/x/%Y_%q.tlog;\n}",
+            "f:2:24: unknown directive '%q'",
+        ),
+        (
+            "record { path /var/%Y/x.tlog; }",
+            "f:1:20: '%' directives are allowed in the file name only, not in the directory",
+        ),
+        (
+            "record { path /var/log/; }",
+            "f:1:23: expected a file name after the directory",
+        ),
+        (
+            "record { max_file_bytes 10; }",
+            "f:1:25: max_file_bytes (10) is outside of the allowed range (1024 - 18446744073709551615)",
+        ),
+        (
+            "record { max_files 4294967296; }",
+            "f:1:20: max_files (4294967296) is outside of the allowed range (0 - 4294967295)",
+        ),
+        (
+            "record { only ATTITUDE; }",
+            "f:1:15: expected 'if' after 'only'",
+        ),
+        (
+            "record { only if; }",
+            "f:1:17: condition is empty or invalid",
+        ),
+        (
+            "record { only if NOPE; }",
+            "f:1:18: Invalid packet name (\"NOPE\").",
+        ),
+        (
+            "record { only if from 1.300; }",
+            "f:1:25: Component ID (300) is outside of the allowed range (0 - 255).",
+        ),
+        (
+            "record { path /tmp/x.tlog }",
+            "f:1:27: expected end of statement ';' character",
+        ),
+        ("record { port 5; }", "f:1:10: unsupported statement"),
+        ("udp { max_files 3; }", "f:1:7: unsupported statement"),
+        (
+            "record { }\nrecord { }",
+            "f:2:1: only one 'record' block is allowed",
+        ),
+    ];
+    for (src, want) in cases {
+        let got = first_error(src);
+        assert_eq!(got.lines().next(), Some(*want), "{src:?}:\n{got}");
+    }
+    assert!(
+        first_error("udp { max_files 3; }").contains("'max_files' belongs in a 'record' block")
+    );
+    assert!(first_error("record { only if Attitude; }").contains("'ATTITUDE'"));
+    // Every mistake of a block is reported, not only the first.
+    let all = first_error("record {\n    max_file_bytes 1;\n    path /x/%Q;\n    only if NOPE;\n}");
+    for want in ["f:2:20:", "f:3:13:", "f:4:13:"] {
+        assert!(all.contains(want), "{want} in:\n{all}");
+    }
+    // The binary says it the same way, with the line and a caret under the mistake.
+    let scratch = Scratch::new("record-check");
+    let path = scratch.dir.join("bad.conf");
+    fs::write(&path, "record {\n    path /var/log/x/%Y_%q.tlog;\n}\n").expect("config");
+    let out = Command::new(BIN)
+        .arg("--check")
+        .arg("--config")
+        .arg(&path)
+        .output()
+        .expect("--check");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(
+        lines[0],
+        format!("{}:2:24: unknown directive '%q'", path.display())
+    );
+    assert_eq!(lines[1], "    path /var/log/x/%Y_%q.tlog;");
+    assert_eq!(lines[2], "                       ^^");
+}
