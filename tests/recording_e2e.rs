@@ -752,3 +752,36 @@ fn mistakes_in_the_record_block_are_located() {
     assert_eq!(lines[1], "    path /var/log/x/%Y_%q.tlog;");
     assert_eq!(lines[2], "                       ^^");
 }
+
+#[test]
+fn the_documented_record_blocks_are_valid() {
+    let doc = fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs/configuration.md");
+    let section = doc
+        .split("## `record`")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("record section");
+    let readme =
+        fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).expect("README.md");
+    let readme = readme
+        .split("## Recording flights")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("README section");
+    let blocks: Vec<&str> = [section, readme]
+        .iter()
+        .flat_map(|text| text.split("```").skip(1).step_by(2))
+        .map(|b| b.trim_start_matches("sh\n"))
+        .filter(|b| b.trim_start().starts_with("record {"))
+        .collect();
+    assert_eq!(blocks.len(), 3);
+    for block in blocks {
+        if let Err(e) = mavtables::config::load(block) {
+            panic!("{}", mavtables::config::render_errors("doc", block, &e));
+        }
+    }
+}
