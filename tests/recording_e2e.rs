@@ -186,6 +186,15 @@ fn said(stopped: &Stopped, pattern: &str) -> usize {
         .count()
 }
 
+/// A router on UDP `port` that accepts everything and records to `dir` with the
+/// statements `extra` (each ending in `;`).
+fn record_config(port: u16, dir: &Path, extra: &str) -> String {
+    format!(
+        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; {extra} }}\ndefault_action accept;\n",
+        dir.display()
+    )
+}
+
 /// The bytes of a frame given in hex.
 fn unhex(hex: &str) -> Vec<u8> {
     (0..hex.len())
@@ -204,10 +213,7 @@ fn every_frame_received_is_recorded_in_order_with_its_arrival_time() {
     let scratch = Scratch::new("record-all");
     let port = free_udp_port();
     let dir = scratch.dir.join("rec");
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 0; }}\ndefault_action accept;\n",
-        dir.display()
-    );
+    let config = record_config(port, &dir, "min_free_bytes 0;");
     let router = Router::start(&scratch, &config, 0);
     let t0 = now_us();
     // Two peers, one after the other, then the first system again from a new socket:
@@ -350,10 +356,7 @@ fn records_reach_the_file_within_a_second() {
     let scratch = Scratch::new("record-flush");
     let port = free_udp_port();
     let dir = scratch.dir.join("rec");
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 0; }}\ndefault_action accept;\n",
-        dir.display()
-    );
+    let config = record_config(port, &dir, "min_free_bytes 0;");
     let router = Router::start(&scratch, &config, 0);
     let sent = send(port, 1, &items(12));
     let done = Instant::now();
@@ -465,10 +468,7 @@ fn a_full_disk_drops_records_never_packets() {
     };
     fill(&mnt, 8192);
     let port = free_udp_port();
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 0; }}\ndefault_action accept;\n",
-        mnt.display()
-    );
+    let config = record_config(port, &mnt, "min_free_bytes 0;");
     let (sent, stopped) = route_through(&scratch, &config, port, 400);
     let c = counts(&stopped);
     // The listener's HEARTBEAT and the 400 frames: each written or dropped.
@@ -489,23 +489,35 @@ fn a_full_disk_drops_records_never_packets() {
     assert_eq!(fs::metadata(&files[0]).expect("meta").len(), c.bytes);
 }
 
+/// A 1 MiB disk holding an old recording of `old_bytes`, recorded to with
+/// `min_free_bytes` while `n` frames are routed: whether the old recording is still
+/// there, what was sent and how the router stopped. `None` when no tmpfs can be mounted.
+fn with_old_recording(
+    tag: &str,
+    old_bytes: usize,
+    min_free_bytes: u64,
+    n: usize,
+) -> Option<(bool, Vec<String>, Stopped)> {
+    let scratch = Scratch::new(tag);
+    let mnt = scratch.dir.join("disk");
+    let _disk = Tmpfs::mount(&mnt)?;
+    let old = mnt.join("2000-01-01_00-00-00.tlog");
+    fs::write(&old, vec![0u8; old_bytes]).expect("old recording");
+    let port = free_udp_port();
+    let extra = format!("min_free_bytes {min_free_bytes};");
+    let config = record_config(port, &mnt, &extra);
+    let (sent, stopped) = route_through(&scratch, &config, port, n);
+    Some((old.exists(), sent, stopped))
+}
+
 #[test]
 fn old_recordings_make_room_for_min_free_bytes() {
-    let scratch = Scratch::new("record-room");
-    let mnt = scratch.dir.join("disk");
-    let Some(_disk) = Tmpfs::mount(&mnt) else {
+    let Some((kept, sent, stopped)) = with_old_recording("record-room", 700_000, 500_000, 50)
+    else {
         return;
     };
-    let old = mnt.join("2000-01-01_00-00-00.tlog");
-    fs::write(&old, vec![0u8; 700_000]).expect("old recording");
-    let port = free_udp_port();
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 500000; }}\ndefault_action accept;\n",
-        mnt.display()
-    );
-    let (sent, stopped) = route_through(&scratch, &config, port, 50);
     assert!(
-        !old.exists(),
+        !kept,
         "the old recording was removed to keep 500000 bytes free"
     );
     let c = counts(&stopped);
@@ -516,23 +528,11 @@ fn old_recordings_make_room_for_min_free_bytes() {
 
 #[test]
 fn without_min_free_bytes_records_are_dropped_and_old_recordings_kept() {
-    let scratch = Scratch::new("record-nospace");
-    let mnt = scratch.dir.join("disk");
-    let Some(_disk) = Tmpfs::mount(&mnt) else {
+    let Some((kept, sent, stopped)) = with_old_recording("record-nospace", 10_000, 2_000_000, 100)
+    else {
         return;
     };
-    let old = mnt.join("2000-01-01_00-00-00.tlog");
-    fs::write(&old, vec![0u8; 10_000]).expect("old recording");
-    let port = free_udp_port();
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 2000000; }}\ndefault_action accept;\n",
-        mnt.display()
-    );
-    let (sent, stopped) = route_through(&scratch, &config, port, 100);
-    assert!(
-        old.exists(),
-        "removing it would not have made room: it stays"
-    );
+    assert!(kept, "removing it would not have made room: it stays");
     let c = counts(&stopped);
     assert_eq!(c.no_space, sent.len() as u64 + 1, "{c:?}");
     assert_eq!(c.written + c.removed + c.disk, 0);
@@ -558,10 +558,7 @@ fn a_file_size_limit_moves_recording_to_a_new_file() {
         .expect("chmod");
     assert!(chmod.success());
     let port = free_udp_port();
-    let config = format!(
-        "udp {{ port {port}; }}\nrecord {{ path {}/%Y-%m-%d_%H-%M-%S.tlog; min_free_bytes 0; }}\ndefault_action accept;\n",
-        dir.display()
-    );
+    let config = record_config(port, &dir, "min_free_bytes 0;");
     let wrapper = wrapper.display().to_string();
     let (sent, stopped) = route_through_binary(&wrapper, &scratch, &config, port, 200);
     let c = counts(&stopped);
