@@ -8,6 +8,7 @@
 //! - [`filter`]: the filter chains;
 //! - [`routing`]: the sans-IO routing core (learning, decisions, queues, pacing);
 //! - [`io`]: the event loop and the UDP / serial drivers;
+//! - [`recording`]: recording received frames to `.tlog` files (the sans-IO parts);
 //! - [`cli`]: the command line; [`commands`]: the `inspect` and `replay` subcommands;
 //! - [`utc`]: UTC calendar formatting of timestamps (logs and `inspect`);
 //! - [`address`]: MAVLink addresses and subnets.
@@ -25,6 +26,7 @@ pub mod config;
 pub mod dialect;
 pub mod filter;
 pub mod io;
+pub mod recording;
 pub mod routing;
 pub mod signing;
 pub mod utc;

@@ -78,6 +78,16 @@ const PIECES: &[&str] = &[
     "127.0.0.1",
     "é",
     "\r\n",
+    "record",
+    "path",
+    "max_file_bytes",
+    "max_files",
+    "min_free_bytes",
+    "only",
+    "%Y",
+    "%q",
+    "%",
+    "/var/log/%H.tlog",
 ];
 
 fn check(src: &str) {
@@ -86,6 +96,14 @@ fn check(src: &str) {
             let c = loaded.config;
             assert!(c.default_chain.0 < c.chains.len());
             assert_eq!(c.chain(c.default_chain).name, "default");
+            if let Some(r) = &c.record {
+                assert!(r.max_file_bytes >= config::Recording::MIN_FILE_BYTES);
+                let path = r.path_pattern(|_| None);
+                assert!(
+                    mavtables::recording::FilePattern::parse(&path).is_ok(),
+                    "{path}"
+                );
+            }
         }
         Err(errors) => {
             assert!(!errors.is_empty());
@@ -139,6 +157,17 @@ proptest! {
             if let Some((s, c, b)) = to { rule += &format!(" to {s}.{c}\\{b}"); }
         }
         let src = format!("chain default {{ {rule}; }}\nchain c {{ accept; }}");
+        // The same condition records: `only if ...;` takes the rules' syntax.
+        if let Some((_, cond)) = rule.split_once(" if ") {
+            let record = format!("record {{ only if {cond}; only if from 1.1; }}");
+            let loaded = config::load(&record);
+            prop_assert!(loaded.is_ok(), "{record}");
+            if let Ok(l) = loaded {
+                let r = l.config.record.expect("record");
+                prop_assert_eq!(r.only.len(), 2);
+                prop_assert_eq!(r.only[0].signed, signed);
+            }
+        }
         let loaded = config::load(&src);
         prop_assert!(loaded.is_ok(), "{src}");
         if let Ok(l) = loaded {

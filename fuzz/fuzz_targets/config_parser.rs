@@ -17,6 +17,12 @@ fuzz_target!(|data: &[u8]| {
             if let Some(path) = &c.signing_state {
                 assert!(!path.is_empty());
             }
+            if let Some(r) = &c.record {
+                // A recording path is a valid pattern, and files hold at least 1 KiB.
+                assert!(r.max_file_bytes >= config::Recording::MIN_FILE_BYTES);
+                let path = r.path_pattern(|_| None);
+                assert!(mavtables::recording::FilePattern::parse(&path).is_ok());
+            }
             let keyed = c.interfaces.iter().any(|i| i.signing().is_some());
             assert_eq!(c.signing_state_path(|_| None).is_some(), keyed);
             for iface in &c.interfaces {

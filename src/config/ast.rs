@@ -67,6 +67,13 @@ pub enum Item {
         /// The path, as written.
         path: Span,
     },
+    /// `record { ... }`: recording received frames to `.tlog` files.
+    Record {
+        /// The `record` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<RecordSetting>,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.
@@ -141,6 +148,26 @@ pub enum QueueSetting {
     LinkBytes(Span),
     /// `total_bytes N;`: what all queues together may hold.
     TotalBytes(Span),
+}
+
+/// A statement of a `record` block; spans cover the value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum RecordSetting {
+    /// `path PATTERN;`: where recordings are written, with `%Y %m %d %H %M %S %%`.
+    Path(Span),
+    /// `max_file_bytes N;`: a file is closed for a new one before it grows beyond this.
+    MaxFileBytes(Span),
+    /// `max_files N;`: the oldest recordings are removed beyond this many.
+    MaxFiles(Span),
+    /// `min_free_bytes N;`: the free disk space recording keeps.
+    MinFreeBytes(Span),
+    /// `only if CONDITION;`: record only frames meeting one of these.
+    Only {
+        /// The `only` keyword.
+        keyword: Span,
+        /// The condition, in the syntax of rules (boxed: it is far larger than a span).
+        condition: Box<ConditionAst>,
+    },
 }
 
 /// A statement of a `serial` block; each span covers the value.

@@ -15,6 +15,7 @@ pub mod model;
 pub mod net;
 pub mod parser;
 pub mod printer;
+pub mod recording;
 pub mod semantics;
 pub mod sockets;
 pub mod suggest;

@@ -22,6 +22,8 @@ pub struct Config {
     /// Where the signing timestamps are saved (`signing_state PATH;`), as written; see
     /// [`Config::signing_state_path`] for the default.
     pub signing_state: Option<String>,
+    /// The `record` block: what to record where; `None` records nothing.
+    pub record: Option<Recording>,
 }
 
 impl Config {
@@ -39,6 +41,7 @@ impl Config {
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
             signing_state: None,
+            record: None,
         }
     }
 
@@ -281,6 +284,66 @@ impl QueueBounds {
     /// The largest bound, 2^40 bytes (1 TiB): far beyond any real memory, low enough that
     /// sums over many links cannot overflow.
     pub const MAX_BYTES: u64 = 1 << 40;
+}
+
+/// The `record { }` block: every valid frame the router takes in (or those meeting one of
+/// `only`) is written to `.tlog` files named after `path`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Recording {
+    /// The file-name pattern as written (`%Y %m %d %H %M %S %%`, local time); see
+    /// [`Recording::path_pattern`] for the default.
+    pub path: Option<String>,
+    /// A file is closed for a new one before it would grow beyond this many bytes.
+    pub max_file_bytes: u64,
+    /// At most this many recordings of the pattern are kept in the directory (the
+    /// oldest are removed); 0: no limit.
+    pub max_files: u32,
+    /// Recording keeps this many bytes free on the disk: older recordings are removed,
+    /// and when that is not enough records are dropped until there is room again.
+    pub min_free_bytes: u64,
+    /// Record only frames meeting one of these (`only if …;`); empty: every frame.
+    pub only: Vec<Condition>,
+}
+
+impl Recording {
+    /// `max_file_bytes` unless written: 100 MB.
+    pub const DEFAULT_MAX_FILE_BYTES: u64 = 100_000_000;
+    /// The smallest `max_file_bytes`: room for a few of the largest records.
+    pub const MIN_FILE_BYTES: u64 = 1024;
+    /// `max_files` unless written.
+    pub const DEFAULT_MAX_FILES: u32 = 100;
+    /// `min_free_bytes` unless written: 100 MB.
+    pub const DEFAULT_MIN_FREE_BYTES: u64 = 100_000_000;
+    /// The file name when `path` is not written.
+    pub const DEFAULT_NAME: &str = "%Y-%m-%d_%H-%M-%S.tlog";
+    /// The directory when `path` is not written and `$LOGS_DIRECTORY` is unset.
+    pub const DEFAULT_DIRECTORY: &str = "/var/log/mavtables";
+
+    /// A block with every default and no path.
+    pub fn with_defaults() -> Self {
+        Recording {
+            path: None,
+            max_file_bytes: Self::DEFAULT_MAX_FILE_BYTES,
+            max_files: Self::DEFAULT_MAX_FILES,
+            min_free_bytes: Self::DEFAULT_MIN_FREE_BYTES,
+            only: Vec::new(),
+        }
+    }
+
+    /// The path pattern recordings are written to: `path`, or by default
+    /// `%Y-%m-%d_%H-%M-%S.tlog` in `$LOGS_DIRECTORY` (the first of its directories; systemd
+    /// sets it for `LogsDirectory=`), else in `/var/log/mavtables`. `env` looks up an
+    /// environment variable.
+    pub fn path_pattern(&self, env: impl Fn(&str) -> Option<String>) -> String {
+        if let Some(path) = &self.path {
+            return path.clone();
+        }
+        let dir = env("LOGS_DIRECTORY")
+            .and_then(|dirs| dirs.split(':').next().map(str::to_string))
+            .filter(|dir| !dir.is_empty())
+            .unwrap_or_else(|| Self::DEFAULT_DIRECTORY.to_string());
+        format!("{}/{}", dir.trim_end_matches('/'), Self::DEFAULT_NAME)
+    }
 }
 
 /// Index of a chain in [`Config::chains`].

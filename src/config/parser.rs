@@ -18,6 +18,7 @@ const TOP_LEVEL: &[&str] = &[
     "queue",
     "chain",
     "signing_state",
+    "record",
 ];
 const UDP_STATEMENTS: &[&str] = &[
     "port",
@@ -39,6 +40,13 @@ const SERIAL_STATEMENTS: &[&str] = &[
     "allow_unsigned",
 ];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
+const RECORD_STATEMENTS: &[&str] = &[
+    "path",
+    "max_file_bytes",
+    "max_files",
+    "min_free_bytes",
+    "only",
+];
 const ACTIONS: &[&str] = &["accept", "reject", "call", "goto"];
 
 const EXPECTED_SEMICOLON: &str = "expected end of statement ';' character";
@@ -143,6 +151,14 @@ impl<'a> Parser<'a> {
                 Ok(Item::SigningState {
                     keyword: span,
                     path,
+                })
+            }
+            "record" => {
+                self.c.word();
+                let settings = self.block(span, Self::record_setting)?;
+                Ok(Item::Record {
+                    keyword: span,
+                    settings,
                 })
             }
             "chain" => {
@@ -360,6 +376,50 @@ impl<'a> Parser<'a> {
             }
             _ => return Err(unsupported(span, word, QUEUE_STATEMENTS)),
         };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    /// A statement of a `record` block.
+    fn record_setting(&mut self) -> Result<RecordSetting> {
+        const BYTES: &str = "expected a valid number of bytes";
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting =
+            match word {
+                "path" => {
+                    self.c.word();
+                    RecordSetting::Path(self.path("expected the path of the recordings")?)
+                }
+                "max_file_bytes" => {
+                    self.c.word();
+                    RecordSetting::MaxFileBytes(self.number(BYTES)?)
+                }
+                "max_files" => {
+                    self.c.word();
+                    RecordSetting::MaxFiles(self.number("expected a valid number of files")?)
+                }
+                "min_free_bytes" => {
+                    self.c.word();
+                    RecordSetting::MinFreeBytes(self.number(BYTES)?)
+                }
+                "only" => {
+                    self.c.word();
+                    let at = self.c.expected_at();
+                    let Some(kw) = self.c.eat_keyword("if") else {
+                        return Err(self.value_error(at, "expected 'if' after 'only'").with_note(
+                        "write: only if [signed|unsigned] [TYPE] [from SUBNET] [to SUBNET];",
+                    ));
+                    };
+                    RecordSetting::Only {
+                        keyword: span,
+                        condition: Box::new(self.condition(kw)?),
+                    }
+                }
+                _ => return Err(unsupported(span, word, RECORD_STATEMENTS)),
+            };
         self.semicolon(false)?;
         Ok(setting)
     }
@@ -668,6 +728,7 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
             ("tcp", UDP_STATEMENTS),
             ("serial", SERIAL_STATEMENTS),
             ("queue", QUEUE_STATEMENTS),
+            ("record", RECORD_STATEMENTS),
         ]
         .into_iter()
         .filter(|(_, list)| list.contains(&word) && candidates != *list)

@@ -93,6 +93,23 @@ impl Printer<'_, '_> {
                 }
             }
             Item::SigningState { path, .. } => self.node(0, *path, "signing_state", Some(*path)),
+            Item::Record { keyword, settings } => {
+                self.node(0, *keyword, "record", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        RecordSetting::Path(v) => ("path", *v),
+                        RecordSetting::MaxFileBytes(v) => ("max_file_bytes", *v),
+                        RecordSetting::MaxFiles(v) => ("max_files", *v),
+                        RecordSetting::MinFreeBytes(v) => ("min_free_bytes", *v),
+                        RecordSetting::Only { keyword, condition } => {
+                            self.node(1, *keyword, "only", None);
+                            self.condition(2, condition);
+                            continue;
+                        }
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {
@@ -133,19 +150,29 @@ impl Printer<'_, '_> {
             self.node(2, p, "priority", Some(p));
         }
         if let Some(c) = &rule.condition {
-            self.node(2, c.keyword, "condition", None);
-            if let Some((at, signed)) = c.signed {
-                self.node(3, at, if signed { "signed" } else { "unsigned" }, None);
-            }
-            if let Some(t) = c.packet_type {
-                self.node(3, t, "packet_type", Some(t));
-            }
-            if let Some(s) = &c.source {
-                self.node(3, s.span, "source", Some(s.span));
-            }
-            if let Some(d) = &c.dest {
-                self.node(3, d.span, "dest", Some(d.span));
-            }
+            self.condition(2, c);
+        }
+    }
+
+    /// A `condition` node at `depth` and its parts below it.
+    fn condition(&mut self, depth: usize, c: &ConditionAst) {
+        self.node(depth, c.keyword, "condition", None);
+        if let Some((at, signed)) = c.signed {
+            self.node(
+                depth + 1,
+                at,
+                if signed { "signed" } else { "unsigned" },
+                None,
+            );
+        }
+        if let Some(t) = c.packet_type {
+            self.node(depth + 1, t, "packet_type", Some(t));
+        }
+        if let Some(s) = &c.source {
+            self.node(depth + 1, s.span, "source", Some(s.span));
+        }
+        if let Some(d) = &c.dest {
+            self.node(depth + 1, d.span, "dest", Some(d.span));
         }
     }
 }

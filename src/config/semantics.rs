@@ -3,7 +3,8 @@
 //! finds (in file order) rather than stopping at the first.
 
 use super::ast::{
-    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, SerialSetting, SubnetAst, YesNo,
+    self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, RecordSetting, SerialSetting,
+    SubnetAst, YesNo,
 };
 use super::claims::Claim;
 use super::diagnostic::Diagnostic;
@@ -44,6 +45,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     // Line of the first `queue` block: a second one is an error.
     let mut queue_line: Option<usize> = None;
     let mut signing_state = None;
+    // The `record` block, and the line of the first one: a second one is an error.
+    let mut record: Option<Recording> = None;
+    let mut record_line: Option<usize> = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -97,6 +101,26 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             Item::SigningState { path, .. } => {
                 signing_state = Some(ast.text(*path).to_string());
             }
+            Item::Record { keyword, settings } => {
+                if let Some(first) = record_line {
+                    cx.error(
+                        Diagnostic::new(*keyword, "only one 'record' block is allowed")
+                            .with_note(format!("the first 'record' block is on line {first}")),
+                    );
+                }
+                let only = settings
+                    .iter()
+                    .filter_map(|s| match s {
+                        RecordSetting::Only { condition, .. } => Some(cx.condition(condition)),
+                        _ => None,
+                    })
+                    .collect();
+                let checked = super::recording::check(ast, settings, only, &mut cx.errors);
+                if record_line.is_none() {
+                    record_line = Some(cx.line(*keyword));
+                    record = checked;
+                }
+            }
             Item::Chain { name, rules } => {
                 let id = cx.ids[ast.text(*name)];
                 for rule in rules {
@@ -137,6 +161,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             default_chain,
             queue,
             signing_state,
+            record,
         },
         warnings,
     })

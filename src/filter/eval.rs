@@ -271,6 +271,7 @@ mod tests {
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
             signing_state: None,
+            record: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -303,6 +304,7 @@ mod tests {
             default_chain: ChainId(3),
             queue: QueueBounds::default(),
             signing_state: None,
+            record: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(

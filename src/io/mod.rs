@@ -7,11 +7,13 @@
 //! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `log`: log lines and messages, written without ever blocking the loop;
+//! - `recorder`: `.tlog` recordings, written by a thread of their own;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod log;
+mod recorder;
 mod resolve;
 mod runtime;
 mod serial;

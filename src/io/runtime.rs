@@ -14,12 +14,13 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token, Waker};
-use signal_hook::consts::{SIGINT, SIGTERM, SIGUSR1};
+use signal_hook::consts::{SIGINT, SIGTERM, SIGUSR1, SIGXFSZ};
 use signal_hook_mio::v1_0::Signals;
 use slab::Slab;
 
 use super::driver::{Driver, Progress};
 use super::log::{self, Logger};
+use super::recorder::{self, Recorder};
 use super::serial::SerialDriver;
 use super::state_file::StateFile;
 use super::sys::TimerFd;
@@ -27,6 +28,7 @@ use super::tcp::{self, TcpListenerDriver, TcpStreamDriver};
 use super::udp::UdpDriver;
 use crate::config::{Config, Interface};
 use crate::dialect::DIALECT_NAME;
+use crate::recording::{RecordFilter, RecorderStats};
 use crate::routing::{Engine, InterfaceId, Notice, RouterOptions, Timestamp};
 use crate::signing::SigningKey;
 use crate::signing::clock::units_from_unix;
@@ -42,6 +44,8 @@ const WAKER: Token = Token(usize::MAX - 3);
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
 /// How long the log output may take to drain at exit.
 const LOG_DRAIN: Duration = Duration::from_secs(1);
+/// How long the recorder may take to write its last records and close its file at exit.
+const RECORDER_FINISH: Duration = Duration::from_secs(2);
 
 /// A driver and what the loop knows about it.
 struct Slot {
@@ -72,6 +76,8 @@ struct Runtime {
     state_file: Option<StateFile>,
     /// When the signing state is saved next if it changed.
     next_state_save: Timestamp,
+    /// The recorder, when the configuration has a `record` block.
+    recorder: Option<Recorder>,
 }
 
 impl Runtime {
@@ -100,6 +106,38 @@ impl Runtime {
         if let Some(file) = self.state_file.take() {
             let last = self.engine.signing_state(true);
             file.finish(last.as_ref());
+        }
+    }
+
+    /// Hands the frames the core kept for recording to the recorder, stamped with the
+    /// wall clock.
+    fn record(&mut self) {
+        let now = self.now();
+        if let Some(recorder) = &mut self.recorder {
+            recorder.take_from(&mut self.engine, now, wall_micros());
+        }
+    }
+
+    /// The recorder's counters, when the router records.
+    fn recorder_stats(&self) -> Option<RecorderStats> {
+        let recorder = self.recorder.as_ref()?;
+        Some(recorder.stats(self.engine.recording_dropped()))
+    }
+
+    /// The counters report: the core's, and the recorder's line.
+    fn report(&self) -> String {
+        let mut text = self.engine.report();
+        if let Some(stats) = self.recorder_stats() {
+            text.push_str(&format!("  {stats}\n"));
+        }
+        text
+    }
+
+    /// Records the last frames and closes the recording (at exit).
+    fn finish_recording(&mut self) {
+        self.record();
+        if let Some(recorder) = &mut self.recorder {
+            recorder.finish(RECORDER_FINISH);
         }
     }
 
@@ -299,7 +337,7 @@ impl Runtime {
                     SIGNALS => {
                         for signal in self.signals.pending() {
                             if signal == SIGUSR1 {
-                                log::stderr_text(&self.engine.report());
+                                log::stderr_text(&self.report());
                             } else if stop_by.is_none() {
                                 stop_by = Some(now + SHUTDOWN_FLUSH);
                             }
@@ -333,6 +371,7 @@ impl Runtime {
                 self.engine.handle_timeout(now);
             }
             self.handle_notices(now);
+            self.record();
             self.flush_all(now);
             self.handle_notices(now);
             self.arm_timer(now);
@@ -356,9 +395,10 @@ pub fn run(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> u8 {
         Ok(mut rt) => {
             let result = rt.run();
             rt.save_signing_state_at_exit();
+            rt.finish_recording();
             rt.handle_notices(rt.now());
             rt.logger.flush();
-            log::stderr_text(&rt.engine.report());
+            log::stderr_text(&rt.report());
             match result {
                 Ok(()) => 0,
                 Err(e) => {
@@ -389,6 +429,27 @@ fn options(config: &Config, loglevel: u8) -> RouterOptions {
             .unwrap_or(defaults.total_queue_capacity),
         ..defaults
     }
+}
+
+/// The wall clock in microseconds since the UNIX epoch.
+fn wall_micros() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
+}
+
+/// Starts recording when `config` has a `record` block: the core keeps the frames, the
+/// recorder writes them. A file-size limit (`RLIMIT_FSIZE`) then makes a write fail
+/// rather than end the process: SIGXFSZ is caught.
+fn start_recording(config: &Config, engine: &mut Engine) -> Option<Recorder> {
+    let record = config.record.as_ref()?;
+    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
+        log::warn(&format_args!("recording: cannot catch SIGXFSZ: {e}"));
+    }
+    let recorder = recorder::start(record)?;
+    engine.set_recording(RecordFilter::new(record.only.clone()));
+    Some(recorder)
 }
 
 /// The wall clock in signature time (10 µs units since 2015-01-01 UTC).
@@ -496,6 +557,7 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
     let state_file = open_state_file(config, &mut engine);
+    let recorder = start_recording(config, &mut engine);
     let mut rt = Runtime {
         poll,
         engine,
@@ -508,6 +570,7 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
         start,
         state_file,
         next_state_save: Timestamp::ZERO,
+        recorder,
     };
     for driver in drivers {
         rt.add(driver, false);

@@ -6,7 +6,8 @@
 //!   of equal datagrams to one destination as one UDP GSO message (`UDP_SEGMENT`);
 //! - `SO_RCVBUFFORCE` / `SO_SNDBUFFORCE`: socket buffers beyond the system's limit
 //!   when the process is privileged;
-//! - `localtime_r`: the local calendar time for log lines;
+//! - `localtime_r`: the local calendar time for log lines and recording file names;
+//! - `statvfs`: the free space of the disk recordings are written to;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
 //! - turning a configured serial port into a non-blocking file for the event loop, and
@@ -403,6 +404,25 @@ pub fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
         tm.tm_min as u32,
         tm.tm_sec as u32,
     ))
+}
+
+/// The bytes an unprivileged process may still write on the file system holding `path`
+/// (`statvfs`: available blocks times the fragment size).
+pub fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c_path = std::ffi::CString::new(path.as_os_str().as_bytes())
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "path holds a NUL byte"))?;
+    // SAFETY: `statvfs` is plain old data; statvfs(3) fills it in.
+    let mut st: libc::statvfs = unsafe { MaybeUninit::zeroed().assume_init() };
+    // SAFETY: `c_path` is a NUL-terminated string and `st` a live local, both valid for
+    // the duration of the call; the kernel reads the one and writes the other only.
+    let rc = unsafe { libc::statvfs(c_path.as_ptr(), &mut st) };
+    if rc != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    #[allow(clippy::useless_conversion)] // the field types differ between targets
+    let (blocks, size) = (u64::from(st.f_bavail), u64::from(st.f_frsize));
+    Ok(blocks.saturating_mul(size))
 }
 
 /// A monotonic one-shot timer as a file descriptor that becomes readable when it fires.

@@ -44,6 +44,7 @@ use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::{Config, PeerLimits};
+use crate::recording::{RecordFilter, Tap};
 use crate::signing::sign;
 use crate::signing::state::SavedState;
 use crate::signing::{Edge, Signing, SigningKey};
@@ -115,6 +116,8 @@ pub struct Engine {
     unknown: UnknownIds,
     next_tick: Timestamp,
     signing: Signing,
+    /// Frames kept for recording, when the router records.
+    tap: Option<Tap>,
 }
 
 impl Engine {
@@ -128,6 +131,7 @@ impl Engine {
             unknown: UnknownIds::default(),
             next_tick: Timestamp::ZERO + TICK,
             signing: Signing::default(),
+            tap: None,
         }
     }
 
@@ -322,6 +326,28 @@ impl Engine {
         }
     }
 
+    /// Starts recording: from now on every frame taken in (after the signing check of
+    /// its interface) that `filter` passes is kept, with its time of arrival, until
+    /// [`Engine::poll_recorded`] takes it. Take them every loop turn: what does not fit
+    /// in a bounded buffer is dropped and counted ([`Engine::recording_dropped`]).
+    pub fn set_recording(&mut self, filter: RecordFilter) {
+        self.tap = Some(Tap::new(filter));
+    }
+
+    /// Hands each frame kept for recording to `take` with its time of arrival, oldest
+    /// first (arrival order), and forgets them.
+    #[inline]
+    pub fn poll_recorded(&mut self, take: &mut impl FnMut(Timestamp, &[u8])) {
+        if let Some(tap) = self.tap.as_mut().filter(|t| !t.is_empty()) {
+            tap.drain(take);
+        }
+    }
+
+    /// Frames not kept for recording because the buffer was full.
+    pub fn recording_dropped(&self) -> u64 {
+        self.tap.as_ref().map_or(0, Tap::dropped)
+    }
+
     /// Notes the wall clock for signing: at `now` it read `units` (MAVLink signature
     /// time, 10 µs units since 2015-01-01 UTC). Call it at start and about once a second.
     pub fn set_wall_clock(&mut self, now: Timestamp, units: u64) {
@@ -429,6 +455,7 @@ impl Engine {
             edge: edge.as_mut(),
             signing: &mut self.signing,
             described,
+            tap: self.tap.as_mut(),
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -467,6 +494,7 @@ impl Engine {
             edge: edge.as_mut(),
             signing: &mut self.signing,
             described,
+            tap: self.tap.as_mut(),
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -840,6 +868,7 @@ impl Engine {
                     edge: edge.as_mut(),
                     signing: &mut self.signing,
                     described,
+                    tap: self.tap.as_mut(),
                 });
             }
         }

@@ -1,6 +1,6 @@
 //! Frames from a parser into the router: the signing check of an interface with a key
 //! (a refused frame never reaches the router, and a datagram remote whose frames are all
-//! refused never becomes a link), the sender's link (a datagram remote gets one on its
+//! refused never becomes a link), the recording tap (admitted frames only), the sender's link (a datagram remote gets one on its
 //! first valid frame), counters, and unknown message ids reported once per id.
 
 use std::collections::{HashSet, VecDeque};
@@ -11,6 +11,7 @@ use super::link::LinkId;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
 use super::time::Timestamp;
+use crate::recording::Tap;
 use crate::signing::clock::UNITS_PER_SEC;
 use crate::signing::{Admission, Edge, Refusal, Signing};
 use crate::wire::{Frame, ParseEvents, Rejection};
@@ -73,6 +74,8 @@ pub struct Intake<'a> {
     pub signing: &'a mut Signing,
     /// How messages name the interface.
     pub described: &'a str,
+    /// Where admitted frames are kept for recording, when the router records.
+    pub tap: Option<&'a mut Tap>,
 }
 
 impl Intake<'_> {
@@ -139,6 +142,9 @@ impl ParseEvents for Intake<'_> {
                 }
             },
         };
+        if let Some(tap) = self.tap.as_deref_mut() {
+            tap.offer(&frame, signed, self.now);
+        }
         let id = self.link();
         if signed && let Some(c) = self.router.counters_mut(id) {
             c.signing.verified += 1;

@@ -1,0 +1,72 @@
+//! Checking a `record` block: the path pattern (located errors inside it), the ranges of
+//! the numbers, and the defaults of what is not written. The `only if` conditions are
+//! checked like the conditions of rules, by the caller.
+
+use super::Span;
+use super::ast::{Ast, RecordSetting};
+use super::diagnostic::Diagnostic;
+use super::model::{Condition, Recording};
+use super::semantics::ranged;
+use crate::recording::FilePattern;
+
+/// The recording a `record` block describes, given its `only` conditions already
+/// checked (`None` where one was wrong); every mistake is added to `errors`. A
+/// statement written twice counts the second time.
+pub fn check(
+    ast: &Ast<'_>,
+    settings: &[RecordSetting],
+    only: Vec<Option<Condition>>,
+    errors: &mut Vec<Diagnostic>,
+) -> Option<Recording> {
+    let mut record = Recording::with_defaults();
+    let mut ok = true;
+    let mut number =
+        |span: Span, min: u64, max: u64, what: &str| match ranged(ast.text(span), min, max, what) {
+            Ok(v) => Some(v),
+            Err(message) => {
+                errors.push(Diagnostic::new(span, message));
+                None
+            }
+        };
+    let mut path = None;
+    for s in settings {
+        match s {
+            RecordSetting::Path(span) => path = Some(*span),
+            RecordSetting::MaxFileBytes(span) => {
+                match number(*span, Recording::MIN_FILE_BYTES, u64::MAX, "max_file_bytes") {
+                    Some(v) => record.max_file_bytes = v,
+                    None => ok = false,
+                }
+            }
+            RecordSetting::MaxFiles(span) => match number(*span, 0, u32::MAX.into(), "max_files") {
+                Some(v) => record.max_files = u32::try_from(v).unwrap_or(u32::MAX),
+                None => ok = false,
+            },
+            RecordSetting::MinFreeBytes(span) => {
+                match number(*span, 0, u64::MAX, "min_free_bytes") {
+                    Some(v) => record.min_free_bytes = v,
+                    None => ok = false,
+                }
+            }
+            RecordSetting::Only { .. } => {}
+        }
+    }
+    if let Some(span) = path {
+        let text = ast.text(span);
+        match FilePattern::parse(text) {
+            Ok(_) => record.path = Some(text.to_string()),
+            Err(e) => {
+                let at = Span::new(span.start + e.at.start, span.start + e.at.end);
+                errors.push(Diagnostic::new(at, e.message).with_note(e.note));
+                ok = false;
+            }
+        }
+    }
+    for condition in only {
+        match condition {
+            Some(c) => record.only.push(c),
+            None => ok = false,
+        }
+    }
+    ok.then_some(record)
+}

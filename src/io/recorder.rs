@@ -1,0 +1,585 @@
+//! The recorder: `.tlog` files written by a thread of its own, so that the event loop
+//! never waits for a disk.
+//!
+//! Every loop turn the loop takes the frames the core kept for recording
+//! ([`Engine::poll_recorded`]), stamps them with the wall clock (never going back, even
+//! when the clock is stepped back) and appends them to a bounded queue under one short
+//! lock. The writer takes the whole queue at least every 200 ms (sooner when a quarter of
+//! it is full) and writes it: a new file when the current one would pass
+//! `max_file_bytes` (the oldest recordings beyond `max_files` are removed then), old
+//! recordings removed while the disk has less than `min_free_bytes` free. Records that
+//! do not fit — the queue is full, the disk fails or has no room left — are dropped and
+//! counted, never packets; each kind of trouble is said once, and again when it is over.
+//! At exit the last records are written and the file is synced and closed.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use super::{log, sys};
+use crate::capture::tlog::TIMESTAMP_LEN;
+use crate::config::Recording;
+use crate::recording::rotation::{self, Existing};
+use crate::recording::{FilePattern, LocalTime, RecorderStats};
+use crate::routing::{Engine, Timestamp};
+
+/// What the queue between the loop and the writer may hold: seconds of the busiest
+/// links, so that a disk's short stall loses nothing.
+pub const QUEUE_BOUND: usize = 4 << 20;
+/// The writer takes the queue early once it holds this much.
+const WAKE_AT: usize = QUEUE_BOUND / 4;
+/// The writer takes the queue at least this often, so that records reach the file
+/// (where readers see them) within this time.
+const WRITE_EVERY: Duration = Duration::from_millis(200);
+/// The largest suffix tried when a file name is taken.
+const MAX_SUFFIX: u32 = 9999;
+
+/// Records waiting for the writer: `bytes` holds them back to back (timestamp and
+/// frame), `lens` the length of each.
+#[derive(Default)]
+struct Queue {
+    bytes: Vec<u8>,
+    lens: Vec<u32>,
+    stop: bool,
+}
+
+/// The counters both sides add to.
+#[derive(Default)]
+struct Counters {
+    written: AtomicU64,
+    bytes: AtomicU64,
+    dropped_queue_full: AtomicU64,
+    dropped_disk: AtomicU64,
+    dropped_no_space: AtomicU64,
+    files: AtomicU64,
+    removed: AtomicU64,
+}
+
+impl Counters {
+    fn add(counter: &AtomicU64, n: u64) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+
+    fn dropped_by_writer(&self) -> u64 {
+        self.dropped_disk.load(Ordering::Relaxed) + self.dropped_no_space.load(Ordering::Relaxed)
+    }
+}
+
+/// What the loop and the writer share.
+#[derive(Default)]
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+    /// Set by the writer when it has closed its last file.
+    done: Mutex<bool>,
+    done_cv: Condvar,
+    counters: Counters,
+    /// The file being written (or the last one).
+    current: Mutex<Option<String>>,
+}
+
+/// The loop's handle on the recorder.
+pub struct Recorder {
+    shared: Arc<Shared>,
+    writer: Option<JoinHandle<()>>,
+    /// The last timestamp queued, in microseconds since the epoch.
+    last_us: u64,
+    /// Whether records are being dropped because the queue is full (said once).
+    behind: bool,
+    /// Records dropped for a full queue since that began.
+    behind_drops: u64,
+}
+
+impl Recorder {
+    /// Starts the writer for `record`, whose path pattern is `pattern`; it opens the
+    /// first file at once.
+    pub fn start(record: &Recording, pattern: FilePattern) -> Recorder {
+        let shared = Arc::new(Shared::default());
+        let writer = Writer {
+            dir: PathBuf::from(pattern.dir()),
+            pattern,
+            max_file_bytes: record.max_file_bytes,
+            max_files: record.max_files,
+            min_free_bytes: record.min_free_bytes,
+            shared: shared.clone(),
+            file: None,
+            name: None,
+            size: 0,
+            trouble: None,
+        };
+        let writer = thread::Builder::new()
+            .name("recorder".into())
+            .spawn(move || writer.run())
+            .map_err(|e| log::error(&format_args!("recording: cannot start the writer: {e}")))
+            .ok();
+        Recorder {
+            shared,
+            writer,
+            last_us: 0,
+            behind: false,
+            behind_drops: 0,
+        }
+    }
+
+    /// Queues the frames the core kept for recording, stamped with the wall clock:
+    /// `now` on the core's clock is `wall_us` (microseconds since the epoch).
+    pub fn take_from(&mut self, engine: &mut Engine, now: Timestamp, wall_us: u64) {
+        let mut queued = 0u64;
+        let mut dropped = 0u64;
+        let last = &mut self.last_us;
+        {
+            let mut q = self
+                .shared
+                .queue
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let before = q.bytes.len();
+            engine.poll_recorded(&mut |at, frame| {
+                let age = u64::try_from(now.saturating_since(at).as_micros()).unwrap_or(0);
+                let stamp = wall_us.saturating_sub(age).max(*last);
+                *last = stamp;
+                let len = TIMESTAMP_LEN + frame.len();
+                if q.bytes.len() + len > QUEUE_BOUND {
+                    dropped += 1;
+                    return;
+                }
+                q.bytes.extend_from_slice(&stamp.to_be_bytes());
+                q.bytes.extend_from_slice(frame);
+                q.lens.push(u32::try_from(len).unwrap_or(u32::MAX));
+                queued += 1;
+            });
+            if before < WAKE_AT && q.bytes.len() >= WAKE_AT {
+                self.shared.wake.notify_one();
+            }
+        }
+        if dropped > 0 {
+            Counters::add(&self.shared.counters.dropped_queue_full, dropped);
+            self.behind_drops += dropped;
+            if !self.behind {
+                self.behind = true;
+                log::warn(
+                    &"recording: the writer is behind (a slow disk?); records are dropped and counted until it catches up",
+                );
+            }
+        } else if queued > 0 && self.behind {
+            self.behind = false;
+            log::warn(&format_args!(
+                "recording: the writer caught up; {} records were dropped",
+                std::mem::take(&mut self.behind_drops)
+            ));
+        }
+    }
+
+    /// The counters so far (`core_dropped`: frames the core's buffer could not keep,
+    /// counted as queue full).
+    pub fn stats(&self, core_dropped: u64) -> RecorderStats {
+        let c = &self.shared.counters;
+        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        RecorderStats {
+            written: get(&c.written),
+            bytes: get(&c.bytes),
+            dropped_queue_full: get(&c.dropped_queue_full) + core_dropped,
+            dropped_disk: get(&c.dropped_disk),
+            dropped_no_space: get(&c.dropped_no_space),
+            files: get(&c.files),
+            removed: get(&c.removed),
+            current_path: self
+                .shared
+                .current
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
+        }
+    }
+
+    /// Lets the writer write what is queued, sync and close its file, waiting at most
+    /// `timeout` for it (a stuck disk cannot hold the exit).
+    pub fn finish(&mut self, timeout: Duration) {
+        {
+            let mut q = self
+                .shared
+                .queue
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            q.stop = true;
+            self.shared.wake.notify_one();
+        }
+        let Some(writer) = self.writer.take() else {
+            return;
+        };
+        let deadline = Instant::now() + timeout;
+        let mut done = self
+            .shared
+            .done
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        while !*done {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                log::warn(&format_args!(
+                    "recording: the writer did not finish within {timeout:?}; the last records may be lost"
+                ));
+                return;
+            }
+            done = self
+                .shared
+                .done_cv
+                .wait_timeout(done, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        drop(done);
+        let _ = writer.join();
+    }
+}
+
+/// What keeps records from the disk, said once until it is over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Trouble {
+    /// Opening or writing a file failed.
+    Disk,
+    /// Less than `min_free_bytes` free even without the older recordings.
+    NoSpace,
+}
+
+/// The writer thread's state.
+struct Writer {
+    pattern: FilePattern,
+    dir: PathBuf,
+    max_file_bytes: u64,
+    max_files: u32,
+    min_free_bytes: u64,
+    shared: Arc<Shared>,
+    file: Option<File>,
+    /// The open file's name (in `dir`).
+    name: Option<String>,
+    /// Bytes in the open file.
+    size: u64,
+    /// What is failing now, and the writer's drop count when it began.
+    trouble: Option<(Trouble, u64)>,
+}
+
+impl Writer {
+    fn run(mut self) {
+        self.open_new();
+        let mut batch = Queue::default();
+        loop {
+            let stop = self.wait(&mut batch);
+            self.write(&batch.bytes, &batch.lens);
+            batch.bytes.clear();
+            batch.lens.clear();
+            if stop {
+                break;
+            }
+        }
+        self.close();
+        let mut done = self
+            .shared
+            .done
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        *done = true;
+        self.shared.done_cv.notify_all();
+    }
+
+    /// Waits until records are due to be written and swaps them into `batch` (whose
+    /// emptied buffers the loop fills next); true when the loop is stopping.
+    fn wait(&self, batch: &mut Queue) -> bool {
+        let deadline = Instant::now() + WRITE_EVERY;
+        let mut q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        while !q.stop && q.bytes.len() < WAKE_AT {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            q = self
+                .shared
+                .wake
+                .wait_timeout(q, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        std::mem::swap(&mut q.bytes, &mut batch.bytes);
+        std::mem::swap(&mut q.lens, &mut batch.lens);
+        q.stop
+    }
+
+    /// Writes `bytes` (records of `lens` bytes each), in runs that fit the files.
+    fn write(&mut self, bytes: &[u8], lens: &[u32]) {
+        let (mut at, mut i) = (0usize, 0usize);
+        while i < lens.len() {
+            let first = u64::from(lens[i]);
+            if self.file.is_none() || rotation::must_rotate(self.size, first, self.max_file_bytes) {
+                self.open_new();
+            }
+            if self.file.is_none() {
+                let left = (lens.len() - i) as u64;
+                Counters::add(&self.shared.counters.dropped_disk, left);
+                return;
+            }
+            let (mut run, mut j) = (0u64, i);
+            while j < lens.len()
+                && !rotation::must_rotate(self.size + run, u64::from(lens[j]), self.max_file_bytes)
+            {
+                run += u64::from(lens[j]);
+                j += 1;
+            }
+            let end = at + usize::try_from(run).unwrap_or(usize::MAX);
+            self.write_run(bytes.get(at..end).unwrap_or_default(), &lens[i..j]);
+            at = end;
+            i = j;
+        }
+    }
+
+    /// Writes whole records (`run`, of `lens` bytes each), if the disk has room for them.
+    fn write_run(&mut self, run: &[u8], lens: &[u32]) {
+        let shared = self.shared.clone();
+        let counters = &shared.counters;
+        let count = lens.len() as u64;
+        if !self.make_room(run.len() as u64) {
+            Counters::add(&counters.dropped_no_space, count);
+            self.trouble(
+                Trouble::NoSpace,
+                &"less than min_free_bytes free on the disk even without the older recordings",
+            );
+            return;
+        }
+        let Some(file) = self.file.as_mut() else {
+            Counters::add(&counters.dropped_disk, count);
+            return;
+        };
+        let e = match file.write_all(run) {
+            Ok(()) => {
+                self.size += run.len() as u64;
+                Counters::add(&counters.written, count);
+                Counters::add(&counters.bytes, run.len() as u64);
+                self.recovered();
+                return;
+            }
+            Err(e) => e,
+        };
+        // How far the file got, then cut back: a record cut short would garble the rest
+        // of the file for its readers.
+        let reached = file.metadata().map_or(0, |m| m.len()).max(self.size);
+        let _ = file.set_len(self.size);
+        if e.kind() == io::ErrorKind::FileTooLarge && reached < self.max_file_bytes {
+            // No file may grow beyond `reached` here (a file-size limit, FAT's 4 GiB):
+            // files are rotated at that size from now on, and these records go on in a
+            // new one. Each time the limit only shrinks, so this ends.
+            let path = self.path_text();
+            log::warn(&format_args!(
+                "recording: {path} cannot grow beyond {reached} bytes ({e}); new files are started at that size instead of max_file_bytes"
+            ));
+            self.max_file_bytes = reached;
+            self.close();
+            self.write(run, lens);
+            return;
+        }
+        Counters::add(&counters.dropped_disk, count);
+        let path = self.path_text();
+        self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
+        if e.kind() == io::ErrorKind::FileTooLarge {
+            self.close();
+        }
+    }
+
+    /// Removes old recordings while the disk would have less than `min_free_bytes` free
+    /// after writing `needed` bytes; false if that is not enough.
+    fn make_room(&mut self, needed: u64) -> bool {
+        if self.min_free_bytes == 0 {
+            return true;
+        }
+        let Ok(free) = sys::free_bytes(&self.dir) else {
+            return true;
+        };
+        if free >= self.min_free_bytes.saturating_add(needed) {
+            return true;
+        }
+        let files = self.recordings();
+        let plan = rotation::make_room(
+            &files,
+            free,
+            needed,
+            self.min_free_bytes,
+            self.name.as_deref(),
+        );
+        self.remove(&plan.remove, "to keep min_free_bytes free");
+        plan.enough
+    }
+
+    /// Syncs and closes the open file.
+    fn close(&mut self) {
+        if let Some(file) = self.file.take() {
+            let _ = file.sync_data();
+        }
+        self.name = None;
+        self.size = 0;
+    }
+
+    /// Closes the open file and opens a new one named after the time now (with a
+    /// suffix if the name is taken); then removes the recordings beyond `max_files`.
+    fn open_new(&mut self) {
+        self.close();
+        let _ = fs::create_dir_all(&self.dir);
+        let time = local_now();
+        let mut opened = None;
+        for n in 0..=MAX_SUFFIX {
+            let name = self.pattern.name(&time, n);
+            // Appending: after a failed write is cut back, the next one goes at the end
+            // again (not where the failed one stopped, which would leave a hole).
+            match OpenOptions::new()
+                .append(true)
+                .create_new(true)
+                .mode(0o640)
+                .open(self.dir.join(&name))
+            {
+                Ok(file) => {
+                    opened = Some((file, name));
+                    break;
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+                Err(e) => {
+                    let path = self.dir.join(&name);
+                    self.trouble(
+                        Trouble::Disk,
+                        &format_args!("cannot create {}: {e}", path.display()),
+                    );
+                    return;
+                }
+            }
+        }
+        let Some((file, name)) = opened else {
+            let dir = self.dir.display().to_string();
+            self.trouble(
+                Trouble::Disk,
+                &format_args!("every name up to suffix -{MAX_SUFFIX} is taken in {dir}"),
+            );
+            return;
+        };
+        self.file = Some(file);
+        self.name = Some(name);
+        Counters::add(&self.shared.counters.files, 1);
+        *self
+            .shared
+            .current
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(self.path_text());
+        let files = self.recordings();
+        let excess = rotation::over_count(&files, self.max_files, self.name.as_deref());
+        self.remove(&excess, "beyond max_files");
+    }
+
+    /// The recordings of the pattern in the directory (files only).
+    fn recordings(&self) -> Vec<Existing> {
+        let Ok(entries) = fs::read_dir(&self.dir) else {
+            return Vec::new();
+        };
+        entries
+            .flatten()
+            .filter_map(|entry| {
+                let name = entry.file_name().into_string().ok()?;
+                let suffix = self.pattern.suffix_of(&name)?;
+                let meta = entry.metadata().ok().filter(fs::Metadata::is_file)?;
+                let modified = meta
+                    .modified()
+                    .ok()
+                    .and_then(|t| t.duration_since(UNIX_EPOCH).ok())
+                    .map_or(0, |d| d.as_nanos());
+                Some(Existing {
+                    name,
+                    modified,
+                    suffix,
+                    bytes: meta.len(),
+                })
+            })
+            .collect()
+    }
+
+    /// Removes the recordings `names` (`why` goes in the message if it fails).
+    fn remove(&mut self, names: &[String], why: &str) {
+        for name in names {
+            let path = self.dir.join(name);
+            match fs::remove_file(&path) {
+                Ok(()) => Counters::add(&self.shared.counters.removed, 1),
+                Err(e) => log::warn(&format_args!(
+                    "recording: cannot remove {} ({why}): {e}",
+                    path.display()
+                )),
+            }
+        }
+    }
+
+    fn path_text(&self) -> String {
+        match &self.name {
+            Some(name) => self.dir.join(name).display().to_string(),
+            None => self.dir.display().to_string(),
+        }
+    }
+
+    /// Says `what` if this kind of trouble is new.
+    fn trouble(&mut self, kind: Trouble, what: &dyn std::fmt::Display) {
+        if self.trouble.is_some_and(|(k, _)| k == kind) {
+            return;
+        }
+        let dropped = self.shared.counters.dropped_by_writer();
+        self.trouble = Some((kind, dropped));
+        log::warn(&format_args!(
+            "recording: {what}; records are dropped and counted until it works again"
+        ));
+    }
+
+    /// Says that records are written again, after trouble.
+    fn recovered(&mut self) {
+        if let Some((_, before)) = self.trouble.take() {
+            let dropped = self.shared.counters.dropped_by_writer() - before;
+            log::warn(&format_args!(
+                "recording: writing again to {}; {dropped} records were dropped",
+                self.path_text()
+            ));
+        }
+    }
+}
+
+/// The local calendar time now (UTC if the C library cannot tell).
+fn local_now() -> LocalTime {
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_secs()).unwrap_or(i64::MAX));
+    let (year, month, day, hour, minute, second) = match sys::local_time(secs) {
+        Some((y, mo, d, h, mi, s)) => (i64::from(y), mo, d, h, mi, s),
+        None => crate::utc::calendar(secs),
+    };
+    LocalTime {
+        year: i32::try_from(year).unwrap_or(9999),
+        month,
+        day,
+        hour,
+        minute,
+        second,
+    }
+}
+
+/// The recorder for `record`, if its path is a valid pattern (the configuration checks
+/// a written one; a default one comes from `$LOGS_DIRECTORY`).
+pub fn start(record: &Recording) -> Option<Recorder> {
+    let path = record.path_pattern(|k| std::env::var(k).ok());
+    match FilePattern::parse(&path) {
+        Ok(pattern) => Some(Recorder::start(record, pattern)),
+        Err(e) => {
+            log::error(&format_args!(
+                "recording: path {path}: {}; recording is off",
+                e.message
+            ));
+            None
+        }
+    }
+}
