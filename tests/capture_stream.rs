@@ -356,7 +356,10 @@ fn run_inspect(input: impl Read, opts: &Options) -> (String, String) {
     )
 }
 
-fn frames(input: impl Read) -> (Vec<(Option<u64>, Vec<u8>)>, String) {
+/// Frames replay would send: timestamp and bytes.
+type Sent = Vec<(Option<u64>, Vec<u8>)>;
+
+fn frames(input: impl Read) -> (Sent, String) {
     let mut got = Vec::new();
     let r = replay::for_each_frame(input, |f| {
         got.push((f.timestamp_us, f.bytes.to_vec()));

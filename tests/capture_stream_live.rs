@@ -6,7 +6,7 @@ mod common;
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::UdpSocket;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
@@ -158,7 +158,7 @@ fn long_tlog(copies: usize) -> PathBuf {
 
 /// Peak resident memory (kB) of `inspect --check FILE -`, read once the file's verdict
 /// is out and while the process waits on the standard input the test holds open.
-fn peak_rss_kb(file: &PathBuf, copies: usize) -> u64 {
+fn peak_rss_kb(file: &Path, copies: usize) -> u64 {
     let (mut child, stdin, rx) = spawn_inspect(&["--check", &file.display().to_string(), "-"]);
     let line = rx
         .recv_timeout(Duration::from_secs(60))
