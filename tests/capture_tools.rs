@@ -259,7 +259,7 @@ fn short_tlog(n: usize) -> (PathBuf, Vec<Vec<u8>>) {
     let mut frames = Vec::new();
     for rec in mavtables::capture::tlog::records(&data).take(n) {
         let rec = rec.expect("record");
-        end = rec.offset + 8 + rec.frame.len();
+        end = rec.offset as usize + 8 + rec.frame.len();
         frames.push(rec.frame.to_vec());
     }
     let path = scratch(&format!("first{n}.tlog"));

@@ -1,20 +1,34 @@
 //! Reading MAVLink captures: raw byte streams, ground-station `.tlog` files, and
-//! `.pcap` / `.pcapng` packet captures (MAVLink in UDP). Pure parsers over byte slices;
-//! callers read the files. The format is told from the content, not the file name.
+//! `.pcap` / `.pcapng` packet captures (MAVLink in UDP). The format is told from the
+//! content, not the file name.
+//!
+//! Each format answers two questions about its records ([`records::RecordFormat`]): how
+//! long is the one at hand, and what does it carry. [`Capture`] reads a capture from any
+//! [`std::io::Read`] with those answers through a bounded buffer, so files of any size
+//! take constant memory and standard input is read as it arrives; [`tlog::records`],
+//! [`pcap::Reader`] and [`pcapng::Reader`] walk a capture already in memory with the
+//! same answers.
 
 pub mod linktype;
 pub mod pcap;
 pub mod pcapng;
+pub mod records;
+mod stream;
 pub mod tlog;
+mod window;
+
+pub use stream::{Capture, End, Units};
 
 use std::fmt;
 
 use crate::wire::Version;
 
 /// The kinds of capture understood.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Format {
-    /// MAVLink bytes as they came off a serial port (no framing of its own).
+    /// MAVLink bytes as they came off a serial port (no framing of its own); also what
+    /// an empty input is.
+    #[default]
     Raw,
     /// Ground-station telemetry log: 8-byte big-endian µs timestamp before each frame.
     Tlog,
@@ -39,7 +53,7 @@ impl fmt::Display for Format {
 /// of a tlog's first timestamp.
 const TLOG_EPOCH_RANGE: std::ops::Range<u64> = 946_684_800_000_000..4_102_444_800_000_000;
 
-/// Tells the format of a capture from its first bytes.
+/// Tells the format of a capture from its first bytes (it looks at nine at most).
 pub fn detect(data: &[u8]) -> Format {
     if pcap::is_pcap(data) {
         return Format::Pcap;
@@ -63,8 +77,9 @@ pub struct Unit<'a> {
     /// When it was captured (µs since the UNIX epoch), if the format records it.
     pub timestamp_us: Option<u64>,
     /// Offset of `bytes` in the file.
-    pub offset: usize,
-    /// The bytes: the whole file (raw), one tlog record's frame, or one UDP payload.
+    pub offset: u64,
+    /// The bytes: the next piece of the stream (raw: the pieces make one stream, read
+    /// as they came), one tlog record's frame, or one UDP payload.
     pub bytes: &'a [u8],
     /// For packet captures, the UDP source (IPv4 address and port).
     pub source: Option<([u8; 4], u16)>,
@@ -81,13 +96,25 @@ pub enum CaptureError {
 
 impl CaptureError {
     /// Byte offset of the problem, where known.
-    pub fn offset(&self) -> usize {
+    pub fn offset(&self) -> u64 {
         match self {
             CaptureError::Tlog(tlog::TlogError::BadMagic { offset, .. }) => *offset,
             CaptureError::Tlog(tlog::TlogError::Truncated { offset }) => *offset,
             CaptureError::Pcap(pcap::PcapError::Truncated(at)) => *at,
             CaptureError::Pcap(_) => 0,
         }
+    }
+}
+
+impl From<tlog::TlogError> for CaptureError {
+    fn from(e: tlog::TlogError) -> Self {
+        CaptureError::Tlog(e)
+    }
+}
+
+impl From<pcap::PcapError> for CaptureError {
+    fn from(e: pcap::PcapError) -> Self {
+        CaptureError::Pcap(e)
     }
 }
 
@@ -98,68 +125,6 @@ impl fmt::Display for CaptureError {
             CaptureError::Pcap(e) => write!(f, "{e}"),
         }
     }
-}
-
-/// Calls `each` for every unit of `data` in file order (stopping early if it returns
-/// false), then returns the first error that stopped the reading, if any.
-pub fn for_each_unit<'a>(
-    format: Format,
-    data: &'a [u8],
-    mut each: impl FnMut(Unit<'a>) -> bool,
-) -> Result<(), CaptureError> {
-    match format {
-        Format::Raw => {
-            each(Unit {
-                timestamp_us: None,
-                offset: 0,
-                bytes: data,
-                source: None,
-            });
-            Ok(())
-        }
-        Format::Tlog => {
-            for rec in tlog::records(data) {
-                let rec = rec.map_err(CaptureError::Tlog)?;
-                let unit = Unit {
-                    timestamp_us: Some(rec.timestamp_us),
-                    offset: rec.offset + tlog::TIMESTAMP_LEN,
-                    bytes: rec.frame,
-                    source: None,
-                };
-                if !each(unit) {
-                    break;
-                }
-            }
-            Ok(())
-        }
-        Format::Pcap => {
-            let reader = pcap::Reader::new(data).map_err(CaptureError::Pcap)?;
-            datagrams(reader, each)
-        }
-        Format::PcapNg => {
-            let reader = pcapng::Reader::new(data).map_err(CaptureError::Pcap)?;
-            datagrams(reader, each)
-        }
-    }
-}
-
-fn datagrams<'a>(
-    reader: impl Iterator<Item = Result<pcap::Datagram<'a>, pcap::PcapError>>,
-    mut each: impl FnMut(Unit<'a>) -> bool,
-) -> Result<(), CaptureError> {
-    for dg in reader {
-        let dg = dg.map_err(CaptureError::Pcap)?;
-        let unit = Unit {
-            timestamp_us: Some(dg.timestamp_us),
-            offset: dg.offset,
-            bytes: dg.payload,
-            source: Some(dg.source),
-        };
-        if !each(unit) {
-            break;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

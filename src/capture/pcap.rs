@@ -1,9 +1,11 @@
 //! Classic libpcap files (`.pcap`): the UDP payloads they carry (link types as in
 //! [`super::linktype`]). Non-UDP packets are passed over and counted.
 
-use super::linktype;
+use super::records::{self, RecordFormat};
+use super::{Unit, linktype};
 
-const GLOBAL_HEADER_LEN: usize = 24;
+/// Length of the file header.
+pub const GLOBAL_HEADER_LEN: usize = 24;
 const RECORD_HEADER_LEN: usize = 16;
 
 /// One UDP datagram found in a capture.
@@ -18,7 +20,19 @@ pub struct Datagram<'a> {
     /// The UDP payload.
     pub payload: &'a [u8],
     /// Byte offset of the payload in the file.
-    pub offset: usize,
+    pub offset: u64,
+}
+
+impl<'a> Datagram<'a> {
+    /// The datagram as a unit of MAVLink bytes.
+    pub fn unit(self) -> Unit<'a> {
+        Unit {
+            timestamp_us: Some(self.timestamp_us),
+            offset: self.offset,
+            bytes: self.payload,
+            source: Some(self.source),
+        }
+    }
 }
 
 /// Why a pcap file could not be read.
@@ -29,7 +43,7 @@ pub enum PcapError {
     /// The link-layer type is not one this reader knows.
     UnsupportedLinkType(u32),
     /// The file ends inside the record at this offset.
-    Truncated(usize),
+    Truncated(u64),
 }
 
 impl std::fmt::Display for PcapError {
@@ -55,22 +69,19 @@ pub fn is_pcap(data: &[u8]) -> bool {
     )
 }
 
-/// Reader over a classic pcap file held in memory.
+/// The pcap format as its file header describes it.
 #[derive(Debug, Clone)]
-pub struct Reader<'a> {
-    data: &'a [u8],
-    pos: usize,
+pub struct Pcap {
     big_endian: bool,
     nanos: bool,
     link_type: u32,
     /// Packets that were not IPv4/UDP (or were cut short by the snap length).
     pub skipped: u64,
-    failed: bool,
 }
 
-impl<'a> Reader<'a> {
-    /// Checks the global header and prepares to read records.
-    pub fn new(data: &'a [u8]) -> Result<Self, PcapError> {
+impl Pcap {
+    /// Reads the file header (the first [`GLOBAL_HEADER_LEN`] bytes of `data`).
+    pub fn from_header(data: &[u8]) -> Result<Self, PcapError> {
         if data.len() < GLOBAL_HEADER_LEN || !is_pcap(data) {
             return Err(PcapError::NotPcap);
         }
@@ -80,30 +91,23 @@ impl<'a> Reader<'a> {
             [0xa1, 0xb2, 0xc3, 0xd4] => (true, false),
             _ => (true, true),
         };
-        let mut r = Reader {
-            data,
-            pos: GLOBAL_HEADER_LEN,
+        let mut p = Pcap {
             big_endian,
             nanos,
             link_type: 0,
             skipped: 0,
-            failed: false,
         };
-        r.link_type = r.u32_at(20) & 0x0fff_ffff;
-        if linktype::supported(r.link_type) {
-            Ok(r)
+        p.link_type = p.u32_at(data, 20) & 0x0fff_ffff;
+        if linktype::supported(p.link_type) {
+            Ok(p)
         } else {
-            Err(PcapError::UnsupportedLinkType(r.link_type))
+            Err(PcapError::UnsupportedLinkType(p.link_type))
         }
     }
 
-    fn u32_at(&self, at: usize) -> u32 {
-        let b = [
-            self.data[at],
-            self.data[at + 1],
-            self.data[at + 2],
-            self.data[at + 3],
-        ];
+    /// The `u32` at `at` in `data`, which holds at least `at + 4` bytes.
+    fn u32_at(&self, data: &[u8], at: usize) -> u32 {
+        let b = [data[at], data[at + 1], data[at + 2], data[at + 3]];
         if self.big_endian {
             u32::from_be_bytes(b)
         } else {
@@ -112,39 +116,63 @@ impl<'a> Reader<'a> {
     }
 }
 
-impl<'a> Iterator for Reader<'a> {
-    type Item = Result<Datagram<'a>, PcapError>;
+impl RecordFormat for Pcap {
+    type Item<'a> = Datagram<'a>;
+    type Error = PcapError;
+    const HEAD: usize = RECORD_HEADER_LEN;
 
-    fn next(&mut self) -> Option<Self::Item> {
-        while !self.failed && self.pos < self.data.len() {
-            let at = self.pos;
-            if self.data.len() - at < RECORD_HEADER_LEN {
-                self.failed = true;
-                return Some(Err(PcapError::Truncated(at)));
-            }
-            let secs = u64::from(self.u32_at(at));
-            let frac = u64::from(self.u32_at(at + 4));
-            let incl = self.u32_at(at + 8) as usize;
-            let start = at + RECORD_HEADER_LEN;
-            let Some(frame) = self.data.get(start..start.saturating_add(incl)) else {
-                self.failed = true;
-                return Some(Err(PcapError::Truncated(at)));
-            };
-            self.pos = start + incl;
-            let timestamp_us = secs * 1_000_000 + if self.nanos { frac / 1000 } else { frac };
-            match linktype::udp_payload(self.link_type, frame) {
-                Some(udp) => {
-                    return Some(Ok(Datagram {
-                        timestamp_us,
-                        source: udp.source,
-                        destination: udp.destination,
-                        payload: udp.payload,
-                        offset: start + udp.offset,
-                    }));
-                }
-                None => self.skipped += 1,
+    fn record_len(&self, head: &[u8], at: u64) -> Result<u64, PcapError> {
+        if head.len() < RECORD_HEADER_LEN {
+            return Err(PcapError::Truncated(at));
+        }
+        Ok(RECORD_HEADER_LEN as u64 + u64::from(self.u32_at(head, 8)))
+    }
+
+    fn truncated(&self, at: u64) -> PcapError {
+        PcapError::Truncated(at)
+    }
+
+    fn item<'a>(
+        &mut self,
+        record: &'a [u8],
+        at: u64,
+        _len: u64,
+    ) -> Result<Option<Datagram<'a>>, PcapError> {
+        let secs = u64::from(self.u32_at(record, 0));
+        let frac = u64::from(self.u32_at(record, 4));
+        let frame = &record[RECORD_HEADER_LEN..];
+        let timestamp_us = secs * 1_000_000 + if self.nanos { frac / 1000 } else { frac };
+        match linktype::udp_payload(self.link_type, frame) {
+            Some(udp) => Ok(Some(Datagram {
+                timestamp_us,
+                source: udp.source,
+                destination: udp.destination,
+                payload: udp.payload,
+                offset: at + (RECORD_HEADER_LEN + udp.offset) as u64,
+            })),
+            None => {
+                self.skipped += 1;
+                Ok(None)
             }
         }
-        None
+    }
+
+    fn unit<'a>(dg: Self::Item<'a>) -> Unit<'a> {
+        dg.unit()
+    }
+}
+
+/// Reader over a classic pcap file held in memory.
+pub type Reader<'a> = records::Records<'a, Pcap>;
+
+impl<'a> Reader<'a> {
+    /// Checks the file header and prepares to read records.
+    pub fn new(data: &'a [u8]) -> Result<Self, PcapError> {
+        let format = Pcap::from_header(data)?;
+        Ok(records::Records::starting_at(
+            data,
+            GLOBAL_HEADER_LEN,
+            format,
+        ))
     }
 }

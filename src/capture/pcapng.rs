@@ -2,8 +2,9 @@
 //! Simple Packet Blocks (link types as in [`super::linktype`]). Other blocks, other
 //! protocols and interfaces of unknown link types are passed over and counted.
 
-use super::linktype;
 use super::pcap::{Datagram, PcapError};
+use super::records::{self, RecordFormat};
+use super::{Unit, linktype};
 
 const SHB: u32 = 0x0A0D_0D0A;
 const IDB: u32 = 1;
@@ -11,6 +12,8 @@ const SPB: u32 = 3;
 const EPB: u32 = 6;
 const BYTE_ORDER_MAGIC: u32 = 0x1A2B_3C4D;
 const OPT_IF_TSRESOL: u16 = 9;
+/// Bytes of the first Section Header Block that tell a pcapng file and its byte order.
+pub const FILE_HEADER_LEN: usize = 12;
 
 /// True if `data` starts like a pcapng file.
 pub fn is_pcapng(data: &[u8]) -> bool {
@@ -26,41 +29,25 @@ struct Interface {
     units_per_sec: u64,
 }
 
-/// Reader over a pcapng file held in memory.
+/// The pcapng format: the current section's byte order and interfaces.
 #[derive(Debug, Clone)]
-pub struct Reader<'a> {
-    data: &'a [u8],
-    pos: usize,
+pub struct PcapNg {
     big_endian: bool,
     interfaces: Vec<Interface>,
     /// Packets that were not IPv4/UDP, or on interfaces of unsupported link types.
     pub skipped: u64,
-    failed: bool,
 }
 
-impl<'a> Reader<'a> {
-    /// Checks the first Section Header Block and prepares to read blocks.
-    pub fn new(data: &'a [u8]) -> Result<Self, PcapError> {
-        if data.len() < 12 || !is_pcapng(data) {
-            return Err(PcapError::NotPcap);
-        }
-        let big_endian = match u32::from_le_bytes([data[8], data[9], data[10], data[11]]) {
-            BYTE_ORDER_MAGIC => false,
-            m if m.swap_bytes() == BYTE_ORDER_MAGIC => true,
-            _ => return Err(PcapError::NotPcap),
-        };
-        Ok(Reader {
-            data,
-            pos: 0,
-            big_endian,
-            interfaces: Vec::new(),
-            skipped: 0,
-            failed: false,
-        })
-    }
+/// Reads numbers of one byte order from a block.
+#[derive(Clone, Copy)]
+struct Block<'a> {
+    bytes: &'a [u8],
+    big_endian: bool,
+}
 
-    fn u16_at(&self, at: usize) -> Option<u16> {
-        let b = [*self.data.get(at)?, *self.data.get(at + 1)?];
+impl<'a> Block<'a> {
+    fn u16_at(self, at: usize) -> Option<u16> {
+        let b = [*self.bytes.get(at)?, *self.bytes.get(at + 1)?];
         Some(if self.big_endian {
             u16::from_be_bytes(b)
         } else {
@@ -68,29 +55,56 @@ impl<'a> Reader<'a> {
         })
     }
 
-    fn u32_at(&self, at: usize) -> Option<u32> {
-        let b: [u8; 4] = self.data.get(at..at + 4)?.try_into().ok()?;
+    fn u32_at(self, at: usize) -> Option<u32> {
+        let b: [u8; 4] = self.bytes.get(at..at + 4)?.try_into().ok()?;
         Some(if self.big_endian {
             u32::from_be_bytes(b)
         } else {
             u32::from_le_bytes(b)
         })
     }
+}
+
+impl PcapNg {
+    /// Checks the start of the first Section Header Block (the first
+    /// [`FILE_HEADER_LEN`] bytes of `data`); reading starts with that block.
+    pub fn from_header(data: &[u8]) -> Result<Self, PcapError> {
+        if data.len() < FILE_HEADER_LEN || !is_pcapng(data) {
+            return Err(PcapError::NotPcap);
+        }
+        let big_endian = match u32::from_le_bytes([data[8], data[9], data[10], data[11]]) {
+            BYTE_ORDER_MAGIC => false,
+            m if m.swap_bytes() == BYTE_ORDER_MAGIC => true,
+            _ => return Err(PcapError::NotPcap),
+        };
+        Ok(PcapNg {
+            big_endian,
+            interfaces: Vec::new(),
+            skipped: 0,
+        })
+    }
+
+    fn block<'a>(&self, bytes: &'a [u8]) -> Block<'a> {
+        Block {
+            bytes,
+            big_endian: self.big_endian,
+        }
+    }
 
     /// Reads an IDB body starting at `body` and ending before `end`.
-    fn interface(&self, body: usize, end: usize) -> Option<Interface> {
-        let link_type = u32::from(self.u16_at(body)?);
-        let snap_len = self.u32_at(body + 4)?;
+    fn interface(b: Block<'_>, body: usize, end: usize) -> Option<Interface> {
+        let link_type = u32::from(b.u16_at(body)?);
+        let snap_len = b.u32_at(body + 4)?;
         let mut units_per_sec = 1_000_000;
         let mut at = body + 8;
         while at + 4 <= end {
-            let code = self.u16_at(at)?;
-            let len = self.u16_at(at + 2)? as usize;
+            let code = b.u16_at(at)?;
+            let len = b.u16_at(at + 2)? as usize;
             if code == 0 {
                 break;
             }
             if code == OPT_IF_TSRESOL && len >= 1 {
-                let v = *self.data.get(at + 4)?;
+                let v = *b.bytes.get(at + 4)?;
                 let exp = u32::from(v & 0x7f);
                 units_per_sec = if v & 0x80 == 0 {
                     10u64.checked_pow(exp)?
@@ -107,20 +121,23 @@ impl<'a> Reader<'a> {
         })
     }
 
-    /// The datagram in a packet block, if any: (interface, timestamp, captured bytes, start).
-    fn packet(
+    /// The datagram in a packet block, if any: (interface, timestamp, captured bytes,
+    /// their start in the block). `end` is where the block's body ends; the captured
+    /// bytes are cut to what `b` holds (a block longer than [`records::MAX_RECORD`]).
+    fn packet<'a>(
         &self,
+        b: Block<'a>,
         kind: u32,
         body: usize,
         end: usize,
     ) -> Option<(Interface, u64, &'a [u8], usize)> {
         let (iface, ts, start, len) = if kind == EPB {
-            let iface = *self.interfaces.get(self.u32_at(body)? as usize)?;
-            let ts = (u64::from(self.u32_at(body + 4)?) << 32) | u64::from(self.u32_at(body + 8)?);
-            (iface, ts, body + 20, self.u32_at(body + 12)? as usize)
+            let iface = *self.interfaces.get(b.u32_at(body)? as usize)?;
+            let ts = (u64::from(b.u32_at(body + 4)?) << 32) | u64::from(b.u32_at(body + 8)?);
+            (iface, ts, body + 20, b.u32_at(body + 12)? as usize)
         } else {
             let iface = *self.interfaces.first()?;
-            let orig = self.u32_at(body)? as usize;
+            let orig = b.u32_at(body)? as usize;
             let cap = if iface.snap_len == 0 {
                 orig
             } else {
@@ -128,73 +145,98 @@ impl<'a> Reader<'a> {
             };
             (iface, 0, body + 4, cap)
         };
-        if start + len > end {
+        if start.checked_add(len)? > end {
             return None;
         }
-        Some((iface, ts, &self.data[start..start + len], start))
+        let held = b.bytes.get(start..(start + len).min(b.bytes.len()))?;
+        Some((iface, ts, held, start))
     }
 }
 
-impl<'a> Iterator for Reader<'a> {
-    type Item = Result<Datagram<'a>, PcapError>;
+impl RecordFormat for PcapNg {
+    type Item<'a> = Datagram<'a>;
+    type Error = PcapError;
+    const HEAD: usize = 8;
 
-    fn next(&mut self) -> Option<Self::Item> {
-        while !self.failed && self.pos < self.data.len() {
-            let at = self.pos;
-            let (Some(kind), Some(total)) = (self.u32_at(at), self.u32_at(at + 4)) else {
-                self.failed = true;
-                return Some(Err(PcapError::Truncated(at)));
-            };
-            let total = total as usize;
-            if total < 12 || !total.is_multiple_of(4) || at + total > self.data.len() {
-                self.failed = true;
-                return Some(Err(PcapError::Truncated(at)));
-            }
-            self.pos = at + total;
-            let (body, end) = (at + 8, at + total - 4);
-            match kind {
-                SHB => {
-                    // A new section may switch byte order; its interfaces start afresh.
-                    if let Some(m) = self.data.get(body..body + 4) {
-                        let m = u32::from_le_bytes([m[0], m[1], m[2], m[3]]);
-                        self.big_endian = m != BYTE_ORDER_MAGIC;
-                    }
-                    self.interfaces.clear();
-                }
-                IDB => match self.interface(body, end) {
-                    Some(i) => self.interfaces.push(i),
-                    None => {
-                        self.failed = true;
-                        return Some(Err(PcapError::Truncated(at)));
-                    }
-                },
-                EPB | SPB => {
-                    let found =
-                        self.packet(kind, body, end)
-                            .and_then(|(iface, ts, frame, start)| {
-                                let udp = linktype::udp_payload(iface.link_type, frame)?;
-                                let timestamp_us = u64::try_from(
-                                    u128::from(ts) * 1_000_000
-                                        / u128::from(iface.units_per_sec.max(1)),
-                                )
-                                .unwrap_or(u64::MAX);
-                                Some(Datagram {
-                                    timestamp_us,
-                                    source: udp.source,
-                                    destination: udp.destination,
-                                    payload: udp.payload,
-                                    offset: start + udp.offset,
-                                })
-                            });
-                    match found {
-                        Some(d) => return Some(Ok(d)),
-                        None => self.skipped += 1,
-                    }
-                }
-                _ => {}
-            }
+    fn record_len(&self, head: &[u8], at: u64) -> Result<u64, PcapError> {
+        let b = self.block(head);
+        let (Some(_), Some(total)) = (b.u32_at(0), b.u32_at(4)) else {
+            return Err(PcapError::Truncated(at));
+        };
+        if total < 12 || !total.is_multiple_of(4) {
+            return Err(PcapError::Truncated(at));
         }
-        None
+        Ok(u64::from(total))
+    }
+
+    fn truncated(&self, at: u64) -> PcapError {
+        PcapError::Truncated(at)
+    }
+
+    fn item<'a>(
+        &mut self,
+        block: &'a [u8],
+        at: u64,
+        len: u64,
+    ) -> Result<Option<Datagram<'a>>, PcapError> {
+        let b = self.block(block);
+        let kind = b.u32_at(0).ok_or(PcapError::Truncated(at))?;
+        // `len` fits in a u32: it was read from one.
+        let total = len as usize;
+        let (body, end) = (8, total - 4);
+        match kind {
+            SHB => {
+                // A new section may switch byte order; its interfaces start afresh.
+                if let Some(m) = block.get(body..body + 4) {
+                    let m = u32::from_le_bytes([m[0], m[1], m[2], m[3]]);
+                    self.big_endian = m != BYTE_ORDER_MAGIC;
+                }
+                self.interfaces.clear();
+            }
+            IDB => match Self::interface(b, body, end.min(block.len())) {
+                Some(i) => self.interfaces.push(i),
+                None => return Err(PcapError::Truncated(at)),
+            },
+            EPB | SPB => {
+                let found =
+                    self.packet(b, kind, body, end)
+                        .and_then(|(iface, ts, frame, start)| {
+                            let udp = linktype::udp_payload(iface.link_type, frame)?;
+                            let timestamp_us = u64::try_from(
+                                u128::from(ts) * 1_000_000 / u128::from(iface.units_per_sec.max(1)),
+                            )
+                            .unwrap_or(u64::MAX);
+                            Some(Datagram {
+                                timestamp_us,
+                                source: udp.source,
+                                destination: udp.destination,
+                                payload: udp.payload,
+                                offset: at + (start + udp.offset) as u64,
+                            })
+                        });
+                match found {
+                    Some(d) => return Ok(Some(d)),
+                    None => self.skipped += 1,
+                }
+            }
+            _ => {}
+        }
+        Ok(None)
+    }
+
+    fn unit<'a>(dg: Self::Item<'a>) -> Unit<'a> {
+        dg.unit()
+    }
+}
+
+/// Reader over a pcapng file held in memory.
+pub type Reader<'a> = records::Records<'a, PcapNg>;
+
+impl<'a> Reader<'a> {
+    /// Checks the first Section Header Block and prepares to read blocks.
+    pub fn new(data: &'a [u8]) -> Result<Self, PcapError> {
+        let format = PcapNg::from_header(data)?;
+        Ok(records::Records::starting_at(data, 0, format))
     }
 }
 
@@ -269,7 +311,8 @@ mod tests {
         assert_eq!(d.payload, b"hello");
         assert_eq!(d.timestamp_us, 1_700_000_000_123_456);
         assert_eq!(d.source, ([127, 0, 0, 1], 14486));
-        assert_eq!(&data[d.offset..d.offset + 5], b"hello");
+        let at = d.offset as usize;
+        assert_eq!(&data[at..at + 5], b"hello");
     }
 
     #[test]

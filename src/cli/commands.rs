@@ -2,20 +2,21 @@
 //! [`super::arg_reader`] reader, so they follow the same rules as the main command) and
 //! the texts they print.
 
-use std::io::{IsTerminal, Write};
+use std::io::{IsTerminal, Read, Write};
 
 use super::Outcome;
 use super::arg_reader::{Arg, ArgReader, OptionSpec};
 use crate::address::Subnet;
-use crate::commands::inspect::{self, Options};
-use crate::commands::replay::{self, ProgressBar, Speed, Target};
+use crate::commands::inspect::{self, Failure, Options};
+use crate::commands::replay::{self, ProgressBar, ReplayError, Speed, Target};
 use crate::config::suggest::did_you_mean;
 use crate::dialect;
 
 const INSPECT_USAGE: &str = "\
 usage: mavtables inspect [OPTIONS] FILE...
   Reads raw MAVLink streams, .tlog, .pcap and .pcapng files (told from the content)
-  and prints one line per frame and a summary.
+  and prints one line per frame and a summary. FILE '-' is standard input, listed as
+  it arrives (tcpdump -U -w - udp port 14550 | mavtables inspect -).
   --json            one JSON object per frame, every field decoded (summary on stderr)
   --check           only a verdict: exit 0 if the file is a valid sequence of frames
   --only NAME[,..]  with --check: the message types allowed
@@ -41,7 +42,7 @@ const REPLAY_USAGE: &str = "\
 usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|max]
   Sends a capture's valid frames at their recorded timing (divided by X; default 1),
   or as fast as possible with --speed max. Raw streams have no timing: they are sent
-  as fast as the link takes them.
+  as fast as the link takes them. FILE '-' is standard input, sent as it arrives.
 ";
 
 /// The options of `replay`, as read by the shared reader.
@@ -87,6 +88,17 @@ fn message_ids(list: &str) -> Result<Vec<u32>, String> {
         .collect()
 }
 
+/// Opens a capture: standard input for `-`, else the file. Also says whether it is a
+/// regular file (which can be read twice).
+fn open_capture(file: &str) -> Result<(Box<dyn Read>, bool), String> {
+    if file == "-" {
+        return Ok((Box::new(std::io::stdin().lock()), false));
+    }
+    let f = std::fs::File::open(file).map_err(|e| format!("cannot read {file}: {e}"))?;
+    let regular = f.metadata().is_ok_and(|m| m.is_file());
+    Ok((Box::new(f), regular))
+}
+
 fn subnet(text: &str) -> Result<Subnet, String> {
     text.parse()
         .map_err(|e: crate::address::SubnetParseError| e.0)
@@ -128,16 +140,20 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
     }
     let mut code = 0;
     for file in &files {
-        let data = std::fs::read(file).map_err(|e| format!("cannot read {file}: {e}"))?;
+        let (input, _) = open_capture(file)?;
+        // Buffered for speed; `inspect` flushes whenever it waits for more input.
         let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut *out);
-        let report = inspect::inspect(&data, &opts, &mut buffered)
-            .and_then(|r| buffered.flush().map(|()| r));
+        let report = inspect::inspect(input, &opts, &mut buffered)
+            .and_then(|r| buffered.flush().map(|()| r).map_err(Failure::Output));
         drop(buffered);
         let report = match report {
             Ok(r) => r,
             // The reader went away (`| head`): stop quietly, as command-line tools do.
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(code),
-            Err(e) => return Err(format!("writing output: {e}")),
+            Err(Failure::Output(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+                return Ok(code);
+            }
+            Err(Failure::Output(e)) => return Err(format!("writing output: {e}")),
+            Err(Failure::Input(e)) => return Err(format!("cannot read {file}: {e}")),
         };
         if opts.check {
             match &report.problem {
@@ -151,7 +167,7 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
             }
         } else {
             let summary: &mut dyn Write = if opts.json { &mut *err } else { &mut *out };
-            inspect::write_summary(file, &data, &report, summary)
+            inspect::write_summary(file, &report, summary)
                 .map_err(|e| format!("writing output: {e}"))?;
         }
     }
@@ -185,17 +201,45 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
         let _ = err.write_all(REPLAY_USAGE.as_bytes());
         return Err("replay needs a FILE and --to".into());
     };
-    let data = std::fs::read(&file).map_err(|e| format!("cannot read {file}: {e}"))?;
-    let frames = replay::frames(&data).map_err(|e| format!("{file}: {e}"))?;
+    let describe = |e: ReplayError| match e {
+        ReplayError::Input(e) => format!("cannot read {file}: {e}"),
+        ReplayError::Capture(e) => format!("{file}: {e}"),
+        ReplayError::Send(e) => format!("{target}: {e}"),
+    };
+    let (input, regular) = open_capture(&file)?;
     let terminal = std::io::stderr().is_terminal();
     let mut bar = ProgressBar::new(std::io::stderr());
-    let mut progress = |done, total| {
-        if terminal {
-            bar.update(done, total);
+    let (summary, error) = if regular {
+        // A file is read twice: once to count its frames (the progress bar's total) and
+        // to find a broken capture before anything is sent, then to send.
+        let mut total = 0u64;
+        replay::for_each_frame(input, |_| {
+            total += 1;
+            Ok(())
+        })
+        .map_err(describe)?;
+        let (input, _) = open_capture(&file)?;
+        replay::replay(input, &target, speed, &mut |done| {
+            if terminal {
+                bar.update(done, total);
+            }
+        })
+    } else {
+        let sent = replay::replay(input, &target, speed, &mut |done| {
+            if terminal {
+                bar.update_count(done);
+            }
+        });
+        if terminal && sent.0.frames > 0 {
+            bar.finish_count(sent.0.frames);
         }
+        sent
     };
-    let summary = replay::replay(&frames, &target, speed, &mut progress)
-        .map_err(|e| format!("{target}: {e}"))?;
+    // What was sent before a broken capture (read as it came) is still reported.
+    match error {
+        None | Some(ReplayError::Capture(_)) => {}
+        Some(e) => return Err(describe(e)),
+    }
     let _ = writeln!(
         out,
         "sent {} frames ({} bytes) to {target} in {:.3} s",
@@ -203,5 +247,8 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
         summary.bytes,
         summary.elapsed.as_secs_f64()
     );
-    Ok(0)
+    match error {
+        Some(e) => Err(describe(e)),
+        None => Ok(0),
+    }
 }

@@ -1,7 +1,10 @@
 //! `mavtables inspect`: list, decode, summarise or check the frames of a capture.
 //!
-//! Pure over bytes: the caller reads the file and gives an output stream, so every mode
-//! is testable without touching the file system.
+//! Reads the capture from any [`Read`] as it comes (a file of any size in constant
+//! memory, or standard input while it is written) and writes to any [`Write`], so
+//! every mode is testable without touching the file system. Output is flushed whenever
+//! more input has to be waited for: a live capture is listed frame by frame as it
+//! arrives, and a file is listed at full speed.
 //!
 //! Listing and decoding read a capture as the router does: a MAVLink 2 frame longer than
 //! its message's known length (a newer dialect's extension fields) is a frame, marked
@@ -11,10 +14,10 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::io::{self, Write};
+use std::io::{self, Read, Write};
 
 use crate::address::{Address, Subnet};
-use crate::capture::{self, Unit};
+use crate::capture::{Capture, Format, Unit, Units};
 use crate::dialect::{self, decode};
 use crate::wire::{Checks, Frame, ParseEvents, Parser, ParserStats, Rejection};
 
@@ -51,6 +54,10 @@ pub struct Problem {
 /// What one file contained.
 #[derive(Debug, Clone, Default)]
 pub struct Report {
+    /// The capture's format.
+    pub format: Format,
+    /// Its length in bytes.
+    pub bytes: u64,
     /// Valid frames.
     pub frames: u64,
     /// Frames that passed the `--msg/--from/--to` selection.
@@ -65,26 +72,45 @@ pub struct Report {
     pub problem: Option<Problem>,
 }
 
-/// Receives parser events for one unit of a capture.
+/// Why inspecting a capture stopped short.
+#[derive(Debug)]
+pub enum Failure {
+    /// Reading the capture failed.
+    Input(io::Error),
+    /// Writing the output failed.
+    Output(io::Error),
+}
+
+/// Receives parser events for the units of a capture.
 struct Sink<'a> {
     opts: &'a Options,
     out: &'a mut dyn Write,
-    report: &'a mut Report,
-    /// File offset of the unit's first byte.
+    report: Report,
+    /// File offset of the parser's stream offset 0: the unit's first byte, or 0 for a
+    /// raw capture (one stream read in pieces).
     base: u64,
     timestamp_us: Option<u64>,
     line: String,
     io_error: Option<io::Error>,
+    /// Where the junk that is the problem ends, while it is the last event: a raw
+    /// capture read in pieces reports a run of junk across two pieces in two parts,
+    /// which make one problem.
+    junk_problem: Option<(u64, usize)>,
 }
 
 impl Sink<'_> {
     fn problem(&mut self, offset: u64, reason: impl FnOnce() -> String) {
+        self.junk_problem = None;
         if self.report.problem.is_none() {
             self.report.problem = Some(Problem {
                 offset: self.base + offset,
                 reason: reason(),
             });
         }
+    }
+
+    fn junk_reason(len: usize) -> String {
+        format!("{len} byte(s) that are not part of any frame")
     }
 
     fn selected(&self, f: &Frame<'_>) -> bool {
@@ -165,6 +191,7 @@ impl Sink<'_> {
 
 impl ParseEvents for Sink<'_> {
     fn frame(&mut self, f: Frame<'_>) {
+        self.junk_problem = None;
         self.report.frames += 1;
         if let Some(only) = &self.opts.only
             && !only.contains(&f.message_id())
@@ -206,9 +233,54 @@ impl ParseEvents for Sink<'_> {
     }
 
     fn junk(&mut self, offset: u64, len: usize) {
-        self.problem(offset, || {
-            format!("{len} byte(s) that are not part of any frame")
-        });
+        let at = self.base + offset;
+        if let Some((start, before)) = self.junk_problem
+            && start + before as u64 == at
+            && let Some(p) = &mut self.report.problem
+        {
+            p.reason = Self::junk_reason(before + len);
+            self.junk_problem = Some((start, before + len));
+            return;
+        }
+        let first = self.report.problem.is_none();
+        self.problem(offset, || Self::junk_reason(len));
+        if first {
+            self.junk_problem = Some((at, len));
+        }
+    }
+}
+
+/// Feeds the units of a capture to the parser: one parser for a raw capture's pieces,
+/// a fresh one for each tlog record or datagram (each is a stream of its own).
+struct Run<'a> {
+    sink: Sink<'a>,
+    checks: Checks,
+    stream: Option<Parser>,
+}
+
+impl Units for Run<'_> {
+    fn unit(&mut self, unit: Unit<'_>) -> bool {
+        let sink = &mut self.sink;
+        sink.timestamp_us = unit.timestamp_us;
+        match &mut self.stream {
+            Some(parser) => parser.feed_events(unit.bytes, sink),
+            None => {
+                sink.base = unit.offset;
+                let mut parser = Parser::with_checks(self.checks);
+                parser.feed_events(unit.bytes, sink);
+                parser.finish(sink);
+                sink.report.stats += *parser.stats();
+            }
+        }
+        sink.io_error.is_none()
+    }
+
+    fn waiting(&mut self) {
+        if self.sink.io_error.is_none()
+            && let Err(e) = self.sink.out.flush()
+        {
+            self.sink.io_error = Some(e);
+        }
     }
 }
 
@@ -220,35 +292,44 @@ fn checks(opts: &Options) -> Checks {
     }
 }
 
-/// Inspects one capture held in memory, writing per-frame output to `out` (nothing in
-/// `check` mode). Returns what was found; I/O errors on `out` are returned as errors.
-pub fn inspect(data: &[u8], opts: &Options, out: &mut dyn Write) -> io::Result<Report> {
-    let format = capture::detect(data);
-    let mut report = Report::default();
-    let mut io_error = None;
-    let read = capture::for_each_unit(format, data, |unit: Unit<'_>| {
-        // A raw file is one stream; a tlog record or a datagram is a stream of its own.
-        let mut parser = Parser::with_checks(checks(opts));
-        let mut sink = Sink {
+/// Inspects the capture read from `input`, writing per-frame output to `out` (nothing
+/// in `check` mode). Returns what was found.
+pub fn inspect(input: impl Read, opts: &Options, out: &mut dyn Write) -> Result<Report, Failure> {
+    let capture = Capture::new(input).map_err(Failure::Input)?;
+    let format = capture.format();
+    let checks = checks(opts);
+    let mut run = Run {
+        sink: Sink {
             opts,
-            out: &mut *out,
-            report: &mut report,
-            base: unit.offset as u64,
-            timestamp_us: unit.timestamp_us,
+            out,
+            report: Report {
+                format,
+                ..Report::default()
+            },
+            base: 0,
+            timestamp_us: None,
             line: String::with_capacity(512),
             io_error: None,
-        };
-        parser.feed_events(unit.bytes, &mut sink);
+            junk_problem: None,
+        },
+        checks,
+        stream: (format == Format::Raw).then(|| Parser::with_checks(checks)),
+    };
+    let end = capture.read(&mut run).map_err(Failure::Input)?;
+    let mut sink = run.sink;
+    if let Some(mut parser) = run.stream
+        && sink.io_error.is_none()
+    {
         parser.finish(&mut sink);
-        io_error = sink.io_error.take();
-        report.stats += *parser.stats();
-        io_error.is_none()
-    });
-    if let Some(e) = io_error {
-        return Err(e);
+        sink.report.stats += *parser.stats();
     }
-    if let Err(e) = read {
-        let offset = e.offset() as u64;
+    if let Some(e) = sink.io_error {
+        return Err(Failure::Output(e));
+    }
+    let mut report = sink.report;
+    report.bytes = end.bytes;
+    if let Some(e) = end.error {
+        let offset = e.offset();
         if report.problem.as_ref().is_none_or(|p| p.offset > offset) {
             report.problem = Some(Problem {
                 offset,
@@ -260,20 +341,12 @@ pub fn inspect(data: &[u8], opts: &Options, out: &mut dyn Write) -> io::Result<R
 }
 
 /// Writes the end-of-file summary of `report` for the capture called `name`.
-pub fn write_summary(
-    name: &str,
-    data: &[u8],
-    report: &Report,
-    out: &mut dyn Write,
-) -> io::Result<()> {
+pub fn write_summary(name: &str, report: &Report, out: &mut dyn Write) -> io::Result<()> {
     let s = &report.stats;
     writeln!(
         out,
         "{name}: {} ({} bytes): {} frames, {} shown",
-        capture::detect(data),
-        data.len(),
-        report.frames,
-        report.selected
+        report.format, report.bytes, report.frames, report.selected
     )?;
     writeln!(out, "  parser: {s}")?;
     if !report.per_message.is_empty() {
@@ -317,7 +390,7 @@ mod tests {
     #[test]
     fn text_lines_and_summary() {
         let mut out = Vec::new();
-        let r = inspect(&sample(), &Options::default(), &mut out).expect("in memory");
+        let r = inspect(sample().as_slice(), &Options::default(), &mut out).expect("in memory");
         let text = String::from_utf8(out).expect("utf-8");
         assert_eq!(
             text,
@@ -326,7 +399,7 @@ mod tests {
         );
         assert_eq!((r.frames, r.selected, &r.problem), (2, 2, &None));
         let mut summary = Vec::new();
-        write_summary("s", &sample(), &r, &mut summary).expect("in memory");
+        write_summary("s", &r, &mut summary).expect("in memory");
         let summary = String::from_utf8(summary).expect("utf-8");
         assert!(
             summary.starts_with("s: raw MAVLink (43 bytes): 2 frames, 2 shown\n"),
@@ -357,7 +430,7 @@ mod tests {
     fn longer_than_known_frames_are_listed_and_counted_but_fail_the_check() {
         let data = with_a_longer_frame();
         let mut out = Vec::new();
-        let r = inspect(&data, &Options::default(), &mut out).expect("in memory");
+        let r = inspect(data.as_slice(), &Options::default(), &mut out).expect("in memory");
         let text = String::from_utf8(out).expect("utf-8");
         assert_eq!(
             text.lines().nth(1),
@@ -370,7 +443,7 @@ mod tests {
             (2, 1, &None)
         );
         let mut summary = Vec::new();
-        write_summary("s", &data, &r, &mut summary).expect("in memory");
+        write_summary("s", &r, &mut summary).expect("in memory");
         let summary = String::from_utf8(summary).expect("utf-8");
         assert!(
             summary.contains(
@@ -385,7 +458,7 @@ mod tests {
             ..Options::default()
         };
         let mut out = Vec::new();
-        inspect(&data, &json, &mut out).expect("in memory");
+        inspect(data.as_slice(), &json, &mut out).expect("in memory");
         let text = String::from_utf8(out).expect("utf-8");
         assert!(
             text.lines().nth(1).is_some_and(|l| l.ends_with(
@@ -398,7 +471,7 @@ mod tests {
             check: true,
             ..Options::default()
         };
-        let r = inspect(&data, &check, &mut Vec::new()).expect("in memory");
+        let r = inspect(data.as_slice(), &check, &mut Vec::new()).expect("in memory");
         assert_eq!(
             r.problem,
             Some(Problem {
@@ -416,7 +489,7 @@ mod tests {
             ..Options::default()
         };
         let mut out = Vec::new();
-        let r = inspect(&sample(), &opts, &mut out).expect("in memory");
+        let r = inspect(sample().as_slice(), &opts, &mut out).expect("in memory");
         assert_eq!((r.frames, r.selected), (2, 1));
         let opts = Options {
             msgs: Some(vec![0]),
@@ -424,7 +497,7 @@ mod tests {
             ..Options::default()
         };
         assert_eq!(
-            inspect(&sample(), &opts, &mut Vec::new())
+            inspect(sample().as_slice(), &opts, &mut Vec::new())
                 .expect("in memory")
                 .selected,
             1
@@ -438,7 +511,7 @@ mod tests {
             ..Options::default()
         };
         let mut out = Vec::new();
-        inspect(&sample(), &opts, &mut out).expect("in memory");
+        inspect(sample().as_slice(), &opts, &mut out).expect("in memory");
         let text = String::from_utf8(out).expect("utf-8");
         let first = text.lines().next().expect("a line");
         assert_eq!(
@@ -457,7 +530,7 @@ mod tests {
             check: true,
             ..Options::default()
         };
-        let r = inspect(&data, &opts, &mut Vec::new()).expect("in memory");
+        let r = inspect(data.as_slice(), &opts, &mut Vec::new()).expect("in memory");
         assert_eq!(
             r.problem,
             Some(Problem {
@@ -470,7 +543,7 @@ mod tests {
             only: Some(vec![0]),
             ..Options::default()
         };
-        let r = inspect(&sample(), &only, &mut Vec::new()).expect("in memory");
+        let r = inspect(sample().as_slice(), &only, &mut Vec::new()).expect("in memory");
         assert_eq!(r.problem.map(|p| p.offset), Some(21));
         let r = inspect(&sample()[..30], &opts, &mut Vec::new()).expect("in memory");
         assert_eq!(
@@ -486,12 +559,12 @@ mod tests {
             ..Options::default()
         };
         assert_eq!(
-            inspect(&[], &opts, &mut Vec::new())
+            inspect(&[][..], &opts, &mut Vec::new())
                 .expect("in memory")
                 .problem,
             None
         );
-        let r = inspect(b"garbage", &opts, &mut Vec::new()).expect("in memory");
+        let r = inspect(&b"garbage"[..], &opts, &mut Vec::new()).expect("in memory");
         assert_eq!(r.problem.map(|p| p.offset), Some(0));
     }
 }

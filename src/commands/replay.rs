@@ -1,11 +1,14 @@
 //! `mavtables replay`: send a capture's frames to a UDP address or a serial port at
 //! their recorded timing (scaled by a speed factor), or as fast as possible.
+//!
+//! The capture is read as it is sent, from any [`Read`]: a file of any size in constant
+//! memory, or standard input as it arrives.
 
-use std::io::{self, Write};
+use std::io::{self, Read, Write};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use crate::capture::{self, CaptureError};
+use crate::capture::{Capture, CaptureError, Format, Unit, Units};
 use crate::wire::Parser;
 
 /// Where to send.
@@ -98,26 +101,82 @@ pub struct Timed<'a> {
     pub bytes: &'a [u8],
 }
 
-/// Every valid frame of a capture, in order. Invalid bytes are left out.
-pub fn frames(data: &[u8]) -> Result<Vec<Timed<'_>>, CaptureError> {
-    let mut out = Vec::new();
-    let format = capture::detect(data);
-    capture::for_each_unit(format, data, |unit| {
-        let mut parser = Parser::new();
-        let mut spans = Vec::new();
-        parser.feed(unit.bytes, |f| {
-            spans.push((f.offset() as usize, f.as_bytes().len()))
-        });
-        parser.finish_frames(|f| spans.push((f.offset() as usize, f.as_bytes().len())));
-        for (o, l) in spans {
-            out.push(Timed {
-                timestamp_us: unit.timestamp_us,
-                bytes: &unit.bytes[o..o + l],
-            });
+/// Why a replay (or a walk over a capture's frames) stopped short.
+#[derive(Debug)]
+pub enum ReplayError {
+    /// Reading the capture failed.
+    Input(io::Error),
+    /// The capture is broken here; the frames before were handled.
+    Capture(CaptureError),
+    /// Sending failed (or opening the target did).
+    Send(io::Error),
+}
+
+/// Hands the valid frames of each unit to `each`: one parser for a raw capture's
+/// pieces, a fresh one for each tlog record or datagram.
+struct FrameUnits<F> {
+    each: F,
+    stream: Option<Parser>,
+    error: Option<io::Error>,
+}
+
+impl<F: FnMut(Timed<'_>) -> io::Result<()>> FrameUnits<F> {
+    fn frames(&mut self, parser: &mut Parser, timestamp_us: Option<u64>, bytes: &[u8], end: bool) {
+        let (each, error) = (&mut self.each, &mut self.error);
+        let mut send = |f: crate::wire::Frame<'_>| {
+            if error.is_none()
+                && let Err(e) = each(Timed {
+                    timestamp_us,
+                    bytes: f.as_bytes(),
+                })
+            {
+                *error = Some(e);
+            }
+        };
+        parser.feed(bytes, &mut send);
+        if end {
+            parser.finish_frames(send);
         }
-        true
-    })?;
-    Ok(out)
+    }
+}
+
+impl<F: FnMut(Timed<'_>) -> io::Result<()>> Units for FrameUnits<F> {
+    fn unit(&mut self, unit: Unit<'_>) -> bool {
+        match self.stream.take() {
+            Some(mut parser) => {
+                self.frames(&mut parser, None, unit.bytes, false);
+                self.stream = Some(parser);
+            }
+            None => self.frames(&mut Parser::new(), unit.timestamp_us, unit.bytes, true),
+        }
+        self.error.is_none()
+    }
+}
+
+/// Calls `each` with every valid frame of the capture read from `input`, in order, as
+/// the capture is read (invalid bytes are left out). Stops at the first error `each`
+/// returns, which comes back as [`ReplayError::Send`].
+pub fn for_each_frame(
+    input: impl Read,
+    each: impl FnMut(Timed<'_>) -> io::Result<()>,
+) -> Result<(), ReplayError> {
+    let capture = Capture::new(input).map_err(ReplayError::Input)?;
+    let mut units = FrameUnits {
+        each,
+        stream: (capture.format() == Format::Raw).then(Parser::new),
+        error: None,
+    };
+    let end = capture.read(&mut units).map_err(ReplayError::Input)?;
+    if let Some(mut parser) = units.stream.take() {
+        units.frames(&mut parser, None, &[], true);
+    }
+    if let Some(e) = units.error {
+        return Err(ReplayError::Send(e));
+    }
+    match end.error {
+        Some(e) => Err(ReplayError::Capture(e)),
+        None => Ok(()),
+    }
 }
 
 /// Something frames can be written to.
@@ -196,34 +255,44 @@ pub struct Summary {
     pub elapsed: Duration,
 }
 
-/// Sends `frames` to `target` at `speed`, calling `progress(sent, total)` after each frame.
+/// Sends the frames of the capture read from `input` to `target` at `speed`, as they
+/// are read, calling `progress(sent)` after each frame. Returns what was sent, and
+/// what stopped the replay short, if anything.
 pub fn replay(
-    frames: &[Timed<'_>],
+    input: impl Read,
     target: &Target,
     speed: Speed,
-    progress: &mut dyn FnMut(usize, usize),
-) -> io::Result<Summary> {
-    let mut sender = open(target)?;
+    progress: &mut dyn FnMut(u64),
+) -> (Summary, Option<ReplayError>) {
     let start = Instant::now();
-    let first = frames.iter().find_map(|f| f.timestamp_us);
-    let mut bytes = 0u64;
-    for (i, f) in frames.iter().enumerate() {
-        if let (Speed::Factor(k), Some(t0), Some(t)) = (speed, first, f.timestamp_us) {
-            let due = start + Duration::from_secs_f64(t.saturating_sub(t0) as f64 / 1e6 / k);
-            let now = Instant::now();
-            if due > now {
-                std::thread::sleep(due - now);
-            }
-        }
-        sender.send(f.bytes)?;
-        bytes += f.bytes.len() as u64;
-        progress(i + 1, frames.len());
-    }
-    Ok(Summary {
-        frames: frames.len() as u64,
+    let (mut frames, mut bytes) = (0u64, 0u64);
+    let result = open(target)
+        .map_err(ReplayError::Send)
+        .and_then(|mut sender| {
+            let mut first = None;
+            for_each_frame(input, |f| {
+                if let (Speed::Factor(k), Some(t)) = (speed, f.timestamp_us) {
+                    let t0 = *first.get_or_insert(t);
+                    let due =
+                        start + Duration::from_secs_f64(t.saturating_sub(t0) as f64 / 1e6 / k);
+                    let now = Instant::now();
+                    if due > now {
+                        std::thread::sleep(due - now);
+                    }
+                }
+                sender.send(f.bytes)?;
+                frames += 1;
+                bytes += f.bytes.len() as u64;
+                progress(frames);
+                Ok(())
+            })
+        });
+    let summary = Summary {
+        frames,
         bytes,
         elapsed: start.elapsed(),
-    })
+    };
+    (summary, result.err())
 }
 
 /// Draws a one-line progress bar (for a terminal), at most ten times a second.
@@ -244,29 +313,59 @@ impl<W: Write> ProgressBar<W> {
     }
 
     /// Redraws the bar for `done` of `total` (always on the last one).
-    pub fn update(&mut self, done: usize, total: usize) {
-        let now = Instant::now();
-        if done < total
-            && self
-                .last
-                .is_some_and(|l| now - l < Duration::from_millis(100))
-        {
+    pub fn update(&mut self, done: u64, total: u64) {
+        if done < total && self.too_soon() {
             return;
         }
-        self.last = Some(now);
-        const WIDTH: usize = 30;
-        let filled = (done * WIDTH).checked_div(total).unwrap_or(WIDTH);
+        const WIDTH: u64 = 30;
+        let filled = (done.min(total) * WIDTH)
+            .checked_div(total)
+            .unwrap_or(WIDTH) as usize;
         let _ = write!(
             self.out,
             "\r[{}{}] {done}/{total} frames  {:.1} s",
             "#".repeat(filled),
-            ".".repeat(WIDTH - filled),
+            ".".repeat(WIDTH as usize - filled),
             self.start.elapsed().as_secs_f64()
         );
         if done == total {
             let _ = writeln!(self.out);
         }
         let _ = self.out.flush();
+    }
+
+    /// Redraws the count of `done` frames of a capture whose length is not known (one
+    /// read from standard input).
+    pub fn update_count(&mut self, done: u64) {
+        if self.too_soon() {
+            return;
+        }
+        let _ = write!(
+            self.out,
+            "\r{done} frames  {:.1} s",
+            self.start.elapsed().as_secs_f64()
+        );
+        let _ = self.out.flush();
+    }
+
+    /// Ends the line of a count drawn with [`ProgressBar::update_count`].
+    pub fn finish_count(&mut self, done: u64) {
+        self.last = None;
+        self.update_count(done);
+        let _ = writeln!(self.out);
+    }
+
+    /// True if the last redraw was less than 0.1 s ago; otherwise notes this one.
+    fn too_soon(&mut self) -> bool {
+        let now = Instant::now();
+        if self
+            .last
+            .is_some_and(|l| now - l < Duration::from_millis(100))
+        {
+            return true;
+        }
+        self.last = Some(now);
+        false
     }
 }
 
