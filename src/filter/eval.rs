@@ -320,6 +320,7 @@ mod tests {
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
             signing_state: None,
+            stats: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -352,6 +353,7 @@ mod tests {
             default_chain: ChainId(3),
             queue: QueueBounds::default(),
             signing_state: None,
+            stats: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
