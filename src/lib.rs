@@ -29,5 +29,6 @@ pub mod io;
 pub mod recording;
 pub mod routing;
 pub mod signing;
+pub mod stats;
 pub mod utc;
 pub mod wire;

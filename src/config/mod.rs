@@ -18,6 +18,7 @@ pub mod printer;
 pub mod recording;
 pub mod semantics;
 pub mod sockets;
+pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};

@@ -48,6 +48,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     // The `record` block, and the line of the first one: a second one is an error.
     let mut record: Option<Recording> = None;
     let mut record_line: Option<usize> = None;
+    let mut stats = None;
+    // Line of the first `stats` block: a second one is an error.
+    let mut stats_line: Option<usize> = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -96,6 +99,19 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                 if queue_line.is_none() {
                     queue_line = Some(cx.line(*keyword));
                     queue = bounds.unwrap_or_default();
+                }
+            }
+            Item::Stats { keyword, settings } => {
+                let endpoint = super::stats::check(ast, *keyword, settings, &mut cx.errors);
+                match stats_line {
+                    Some(first) => cx.error(
+                        Diagnostic::new(*keyword, "only one 'stats' block is allowed")
+                            .with_note(format!("the first 'stats' block is on line {first}")),
+                    ),
+                    None => {
+                        stats_line = Some(cx.line(*keyword));
+                        stats = endpoint;
+                    }
                 }
             }
             Item::SigningState { path, .. } => {
@@ -162,6 +178,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             queue,
             signing_state,
             record,
+            stats,
         },
         warnings,
     })
