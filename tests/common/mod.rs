@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod browser;
+pub mod http_fixture;
 pub mod mavproxy;
 pub mod net;
 pub mod router;

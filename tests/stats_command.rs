@@ -1,0 +1,225 @@
+//! `mavtables stats` as users run it: the real binary asking an HTTP endpoint over
+//! 127.0.0.1, its exact output, its one-line errors and `--watch` without a terminal.
+
+mod common;
+
+use std::io::Read;
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use common::http_fixture::{Answer, HttpFixture};
+use common::router::{BIN, Guard};
+
+/// Runs `mavtables stats ARGS` to its end (at most 20 s): status, stdout, stderr.
+fn stats(args: &[&str]) -> (Option<i32>, String, String) {
+    let mut child = Command::new(BIN)
+        .arg("stats")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn mavtables stats");
+    let mut out = child.stdout.take().expect("stdout");
+    let mut err = child.stderr.take().expect("stderr");
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let mut guard = Guard(Some(child));
+    let status = guard
+        .wait(Duration::from_secs(20))
+        .expect("mavtables stats did not end within 20 s");
+    let mut e = String::new();
+    let _ = err.read_to_string(&mut e);
+    (status.code(), reader.join().expect("stdout"), e)
+}
+
+/// Statistics in the shape the router serves, with `n` in some counters.
+fn fixture_stats(n: u64) -> String {
+    serde_json::json!({
+        "version": 1, "uptime_s": 61.9, "history_interval_s": 1,
+        "links": [{
+            "id": 1, "name": "127.0.0.1:40001", "interface": "udp 127.0.0.1:14550",
+            "frames_in": n, "bytes_in": 17 * n, "frames_out": 2, "bytes_out": 34,
+            "rate_in_fps": 4.0, "rate_out_fps": 0.5, "rate_in_bps": 544.0, "rate_out_bps": 68.0,
+            "drops": {"filter_rejected": 2, "no_route": 0, "queue_full": 1, "send_error": 0,
+                      "bad_crc": 0, "unknown_id": 0, "bad_signature": 0, "replayed": 0,
+                      "out_of_window": 0, "unsigned": 0},
+            "queue_bytes": 0, "queue_high_water": 51, "addresses": ["1.1"],
+            "history_in_fps": [4.0, 4.0], "history_out_fps": [0.0, 0.5]
+        }],
+        "interfaces": [],
+        "chains": [{"name": "default", "rules": [
+            {"text": "reject if HEARTBEAT from 2.0/8", "packets": 2, "bytes": 34, "decided": 2},
+            {"text": "accept", "packets": n, "bytes": 17 * n, "decided": n}
+        ]}],
+        "default_action": {"action": "reject", "packets": 0, "bytes": 0},
+        "sources": [], "sequence_gaps": [], "recording": null
+    })
+    .to_string()
+}
+
+fn json(body: String) -> Answer {
+    Answer::Http(200, "application/json", body.into_bytes())
+}
+
+#[test]
+fn prints_chains_rules_and_links_like_iptables() {
+    let server = HttpFixture::start(|path, _| match path {
+        "/stats" => json(fixture_stats(1000)),
+        _ => Answer::Http(404, "text/plain", b"no".to_vec()),
+    });
+    let url = server.url();
+    let (code, out, err) = stats(&["--url", &url]);
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let expected = format!(
+        "\
+mavtables at {url}/stats, up 0:01:01
+
+chain default
+  packets  bytes  decided  rule
+        2     34        2  reject if HEARTBEAT from 2.0/8
+     1000  17000     1000  accept
+
+default_action reject: 0 packets, 0 bytes
+
+link             interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
+127.0.0.1:40001  udp 127.0.0.1:14550       1000           2   4.0    0.5       544         68      3      0          51  1.1
+  drops of 127.0.0.1:40001: filter rejected 2, queue full 1
+"
+    );
+    assert_eq!(out, expected);
+    assert_eq!(err, "");
+}
+
+#[test]
+fn errors_are_one_line_and_exit_1() {
+    // Nothing listens on a port that was just free.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("free port")
+        .port();
+    let (code, out, err) = stats(&["--url", &format!("http://127.0.0.1:{port}")]);
+    assert_eq!(code, Some(1));
+    assert_eq!(out, "");
+    assert!(
+        err.starts_with(&format!("error: cannot connect to 127.0.0.1:{port}: ")),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+
+    let cases: [(Answer, &str); 4] = [
+        (
+            Answer::Http(404, "text/plain", b"not here".to_vec()),
+            "(GET /stats): answered 404 Not OK",
+        ),
+        (Answer::Close, "closed the connection without answering"),
+        (
+            Answer::Raw(b"SSH-2.0-OpenSSH_9.2\r\n\r\n".to_vec()),
+            "not an HTTP answer",
+        ),
+        (
+            json("{\"links\": [".into()),
+            "/stats is not statistics JSON: ",
+        ),
+    ];
+    for (answer, want) in cases {
+        let answer = std::sync::Mutex::new(Some(answer));
+        let server = HttpFixture::start(move |_, _| {
+            answer
+                .lock()
+                .ok()
+                .and_then(|mut a| a.take())
+                .unwrap_or(Answer::Close)
+        });
+        let (code, out, err) = stats(&["--url", &server.url()]);
+        assert_eq!(code, Some(1), "{want}: {err}");
+        assert_eq!(out, "");
+        assert!(
+            err.starts_with("error: ") && err.contains(want),
+            "wanted {want:?} in {err:?}"
+        );
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+
+    for (args, want) in [
+        (&["--url", "ftp://x:1"][..], "only http:// is understood"),
+        (
+            &["--url", "http://a:1", "--config", "b"],
+            "use either --config or --url",
+        ),
+        (&["--config", "/nonexistent/m.conf"], "does not exist"),
+        (&["extra"], "unexpected argument 'extra'"),
+    ] {
+        let (code, _, err) = stats(args);
+        assert_eq!(code, Some(1), "{args:?}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn watch_redraws_every_second_and_ends_cleanly_on_ctrl_c() {
+    let served = Arc::new(AtomicU64::new(0));
+    let counter = Arc::clone(&served);
+    let server = HttpFixture::start(move |_, n| {
+        counter.store(n as u64, Ordering::SeqCst);
+        // The second request finds the router gone; the others see it counting up.
+        if n == 2 {
+            Answer::Close
+        } else {
+            json(fixture_stats(100 * n as u64))
+        }
+    });
+    let mut child = Command::new(BIN)
+        .args(["stats", "--watch", "--url", &server.url()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let mut out = child.stdout.take().expect("stdout");
+    let pid = child.id() as i32;
+    let mut guard = Guard(Some(child));
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let started = Instant::now();
+    while served.load(Ordering::SeqCst) < 3 {
+        assert!(
+            started.elapsed() < Duration::from_secs(15),
+            "three pictures not asked for within 15 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Three requests take two full periods: one per second, not faster.
+    assert!(started.elapsed() >= Duration::from_millis(1900));
+    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
+    let rc = unsafe { libc::kill(pid, libc::SIGINT) };
+    assert_eq!(rc, 0);
+    let status = guard
+        .wait(Duration::from_secs(5))
+        .expect("--watch did not end within 5 s of Ctrl-C");
+    assert_eq!(status.code(), Some(0), "Ctrl-C ends --watch with status 0");
+    let text = reader.join().expect("stdout");
+    // Not a terminal: plain text, no escape codes; pictures one after the other.
+    assert!(!text.contains('\x1b'), "{text:?}");
+    assert!(
+        text.contains("      100   1700      100  accept\n"),
+        "{text}"
+    );
+    assert!(text.contains("router not answering: "), "{text}");
+    assert!(
+        text.contains("      300   5100      300  accept\n"),
+        "{text}"
+    );
+    let first_100 = text.find("100  accept").expect("first");
+    let gone = text.find("router not answering").expect("gone");
+    let third = text.find("300  accept").expect("third");
+    assert!(first_100 < gone && gone < third, "{text}");
+}
