@@ -32,7 +32,7 @@ use mavtables::wire::Frame;
 use mavtables::wire::signing::verify;
 use signing::{
     Key, MINUTE, Py, SigPeer, count_of, exit_report, hex, hex_key_file, key_file, key_from,
-    mavproxy, now_ts, parse_stats, passphrase_key, report_now, signing_counts,
+    mavproxy, now_ts, parse_stats, passphrase_key, py_script, report_now, signing_counts,
 };
 
 const T: Duration = Duration::from_secs(10);
@@ -385,7 +385,7 @@ fn seen_or_wait(p: &mut Py, pattern: &str, timeout: Duration) -> String {
 fn signing_vehicle(link: &[&str], key: &Key) -> Py {
     let mut a = args(link);
     a.extend(args(&["--key", &hex(key), "--link-id", "4"]));
-    let mut v = Py::script("signing_vehicle.py", &a);
+    let mut v = py_script("signing_vehicle.py", &a);
     v.wait_for("ready", Duration::from_secs(20));
     v
 }

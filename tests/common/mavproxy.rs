@@ -20,15 +20,14 @@
 //! Every process is in a process group of its own and the group is killed when its
 //! guard is dropped, so a failing assertion leaves nothing behind.
 
-use std::io::Write;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use super::process::Proc;
 use super::python;
-use super::router::{Lines, Router, Scratch, Stopped};
+use super::router::{Router, Scratch, Stopped};
 
 /// How many parameters the vehicle has (its default).
 pub const PARAMS: usize = 300;
@@ -70,75 +69,6 @@ impl VehicleLink {
             self,
             VehicleLink::Serial(_) | VehicleLink::UdpListen(_) | VehicleLink::TcpListen(_)
         )
-    }
-}
-
-/// A child in a process group of its own, with its stdout and stderr merged into one
-/// line stream.
-struct Proc {
-    /// None once reaped.
-    child: Option<Child>,
-    stdin: Option<ChildStdin>,
-    out: Lines,
-}
-
-impl Proc {
-    fn spawn(mut cmd: Command, what: &str) -> Proc {
-        let (reader, writer) = std::io::pipe().expect("pipe");
-        let err = writer.try_clone().expect("pipe clone");
-        let mut child = cmd
-            .process_group(0)
-            .stdin(Stdio::piped())
-            .stdout(writer)
-            .stderr(err)
-            .spawn()
-            .unwrap_or_else(|e| panic!("spawn {what}: {e}"));
-        // `cmd` still holds the write ends; without dropping it the stream never closes.
-        drop(cmd);
-        Proc {
-            stdin: child.stdin.take(),
-            child: Some(child),
-            out: Lines::new(reader, what),
-        }
-    }
-
-    fn send_line(&mut self, line: &str) {
-        let stdin = self.stdin.as_mut().expect("stdin open");
-        stdin
-            .write_all(format!("{line}\n").as_bytes())
-            .and_then(|()| stdin.flush())
-            .unwrap_or_else(|e| panic!("write {line:?}: {e}"));
-    }
-
-    /// Closes stdin (both peers stop on its end) and reads the output until the
-    /// stream closes, at most `timeout`; then kills whatever is left of the group.
-    fn finish(&mut self, timeout: Duration) -> Vec<String> {
-        self.stdin = None;
-        let mut all = std::mem::take(&mut self.out.seen);
-        all.extend(self.out.rest(timeout));
-        self.out.seen.clone_from(&all);
-        self.kill_group();
-        all
-    }
-
-    fn kill_group(&mut self) {
-        // The leader is reaped only here, after the kill, so its pid, which is the group's
-        // id, cannot have been reused by then.
-        let Some(mut child) = self.child.take() else {
-            return;
-        };
-        // SAFETY: kill(2) on a process group we created has no memory-safety preconditions.
-        unsafe {
-            libc::kill(-(child.id() as i32), libc::SIGKILL);
-        }
-        let _ = child.wait();
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.stdin = None;
-        self.kill_group();
     }
 }
 

@@ -5,6 +5,7 @@ pub mod browser;
 pub mod http_fixture;
 pub mod mavproxy;
 pub mod net;
+pub mod process;
 pub mod router;
 
 use std::path::{Path, PathBuf};

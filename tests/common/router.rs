@@ -95,21 +95,29 @@ impl Lines {
         }
     }
 
-    /// The next line containing `pattern` (lines before it are kept in `seen`); panics,
-    /// showing what was seen, if none comes within `timeout`.
-    pub fn wait_for(&mut self, pattern: &str, timeout: Duration) -> String {
+    /// The next line containing `pattern` (lines before it are kept in `seen`), or None if
+    /// none comes within `timeout`.
+    pub fn within(&mut self, pattern: &str, timeout: Duration) -> Option<String> {
         let deadline = Instant::now() + timeout;
         while let Some(line) = self.next(deadline) {
             if line.contains(pattern) {
-                return line;
+                return Some(line);
             }
         }
-        panic!(
-            "{}: no line containing {pattern:?} within {timeout:?} (stream {}); seen:\n{}",
-            self.what,
-            if self.closed { "closed" } else { "open" },
-            self.seen.join("\n")
-        );
+        None
+    }
+
+    /// The next line containing `pattern` (lines before it are kept in `seen`); panics,
+    /// showing what was seen, if none comes within `timeout`.
+    pub fn wait_for(&mut self, pattern: &str, timeout: Duration) -> String {
+        self.within(pattern, timeout).unwrap_or_else(|| {
+            panic!(
+                "{}: no line containing {pattern:?} within {timeout:?} (stream {}); seen:\n{}",
+                self.what,
+                if self.closed { "closed" } else { "open" },
+                self.seen.join("\n")
+            )
+        })
     }
 
     /// Every line until the stream closes (or `timeout` passes).

@@ -7,19 +7,16 @@
 //! Included with `#[path = "common/signing.rs"] mod signing;` next to `mod common;`.
 #![allow(dead_code)]
 
-use std::io::Write;
-use std::io::{BufRead, BufReader, Read};
 use std::os::unix::fs::PermissionsExt;
-use std::os::unix::process::CommandExt;
 use std::path::Path;
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::process::Command;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2};
 use sha2::{Digest, Sha256};
 
 use crate::common::mavproxy::python_with_mavproxy;
+use crate::common::process::Proc;
 use crate::common::python;
 use crate::common::router::Scratch;
 
@@ -184,165 +181,18 @@ impl Stream {
     }
 }
 
-/// Lines of a child's output, read by a thread, waited for with a time limit (like
-/// `router::Lines`, plus a wait that may come back empty-handed).
-pub struct Lines {
-    rx: Receiver<String>,
-    /// Every line taken from the stream so far.
-    pub seen: Vec<String>,
-    closed: bool,
-    what: String,
-}
-
-impl Lines {
-    pub fn new(stream: impl Read + Send + 'static, what: &str) -> Lines {
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stream).lines() {
-                let Ok(line) = line else { break };
-                if tx.send(line).is_err() {
-                    break;
-                }
-            }
-        });
-        Lines {
-            rx,
-            seen: Vec::new(),
-            closed: false,
-            what: what.to_string(),
-        }
-    }
-
-    fn next(&mut self, deadline: Instant) -> Option<String> {
-        if self.closed {
-            return None;
-        }
-        let left = deadline.saturating_duration_since(Instant::now());
-        match self.rx.recv_timeout(left) {
-            Ok(line) => {
-                self.seen.push(line.clone());
-                Some(line)
-            }
-            Err(RecvTimeoutError::Timeout) => None,
-            Err(RecvTimeoutError::Disconnected) => {
-                self.closed = true;
-                None
-            }
-        }
-    }
-
-    /// The next line containing `pattern`, or None if none comes within `timeout`.
-    pub fn within(&mut self, pattern: &str, timeout: Duration) -> Option<String> {
-        let deadline = Instant::now() + timeout;
-        while let Some(line) = self.next(deadline) {
-            if line.contains(pattern) {
-                return Some(line);
-            }
-        }
-        None
-    }
-
-    /// The next line containing `pattern`; panics, showing what was seen, if none comes
-    /// within `timeout`.
-    pub fn wait_for(&mut self, pattern: &str, timeout: Duration) -> String {
-        self.within(pattern, timeout).unwrap_or_else(|| {
-            panic!(
-                "{}: no line containing {pattern:?} within {timeout:?} (stream {}); seen:\n{}",
-                self.what,
-                if self.closed { "closed" } else { "open" },
-                self.seen.join("\n")
-            )
-        })
-    }
-
-    /// Every line until the stream closes (or `timeout` passes).
-    pub fn rest(&mut self, timeout: Duration) -> Vec<String> {
-        let deadline = Instant::now() + timeout;
-        let mut out = Vec::new();
-        while let Some(line) = self.next(deadline) {
-            out.push(line);
-        }
-        out
-    }
-}
-
 /// A Python helper in a process group of its own, stdout and stderr merged into one
 /// line stream; the group is killed when dropped.
-pub struct Py {
-    child: Option<Child>,
-    stdin: Option<ChildStdin>,
-    pub out: Lines,
-}
+pub type Py = Proc;
 
-impl Py {
-    pub fn spawn(mut cmd: Command, what: &str) -> Py {
-        let (reader, writer) = std::io::pipe().expect("pipe");
-        let err = writer.try_clone().expect("pipe clone");
-        let mut child = cmd
-            .process_group(0)
-            .stdin(Stdio::piped())
-            .stdout(writer)
-            .stderr(err)
-            .spawn()
-            .unwrap_or_else(|e| panic!("spawn {what}: {e}"));
-        drop(cmd);
-        Py {
-            stdin: child.stdin.take(),
-            child: Some(child),
-            out: Lines::new(reader, what),
-        }
-    }
-
-    /// `tests/py/SCRIPT ARGS…` with the pymavlink interpreter.
-    pub fn script(script: &str, args: &[String]) -> Py {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/py")
-            .join(script);
-        let mut cmd = Command::new(python());
-        cmd.arg(path).args(args).env("PYTHONUNBUFFERED", "1");
-        Py::spawn(cmd, &format!("{script} {}", args.join(" ")))
-    }
-
-    pub fn send_line(&mut self, line: &str) {
-        let stdin = self.stdin.as_mut().expect("stdin open");
-        stdin
-            .write_all(format!("{line}\n").as_bytes())
-            .and_then(|()| stdin.flush())
-            .unwrap_or_else(|e| panic!("write {line:?}: {e}"));
-    }
-
-    pub fn wait_for(&mut self, pattern: &str, timeout: Duration) -> String {
-        self.out.wait_for(pattern, timeout)
-    }
-
-    /// Closes stdin and reads the output until the stream closes (at most `timeout`);
-    /// returns every line it printed, then kills what is left of the group.
-    pub fn finish(&mut self, timeout: Duration) -> Vec<String> {
-        self.stdin = None;
-        let mut all = std::mem::take(&mut self.out.seen);
-        all.extend(self.out.rest(timeout));
-        self.out.seen.clone_from(&all);
-        self.kill_group();
-        all
-    }
-
-    fn kill_group(&mut self) {
-        let Some(mut child) = self.child.take() else {
-            return;
-        };
-        // SAFETY: kill(2) on a process group we created has no memory-safety preconditions.
-        unsafe {
-            libc::kill(-(child.id() as i32), libc::SIGKILL);
-        }
-        let _ = child.wait();
-    }
-}
-
-impl Drop for Py {
-    fn drop(&mut self) {
-        self.stdin = None;
-        self.kill_group();
-    }
+/// `tests/py/SCRIPT ARGS…` with the pymavlink interpreter.
+pub fn py_script(script: &str, args: &[String]) -> Py {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/py")
+        .join(script);
+    let mut cmd = Command::new(python());
+    cmd.arg(path).args(args).env("PYTHONUNBUFFERED", "1");
+    Proc::spawn(cmd, &format!("{script} {}", args.join(" ")))
 }
 
 /// One `recv` line of `signing_peer.py`.
@@ -393,7 +243,7 @@ pub struct SigPeer {
 impl SigPeer {
     /// Starts it with `args` (see the script) and waits for "ready".
     pub fn start(args: &[String]) -> SigPeer {
-        let mut py = Py::script("signing_peer.py", args);
+        let mut py = py_script("signing_peer.py", args);
         py.wait_for("ready", Duration::from_secs(20));
         SigPeer { py }
     }
