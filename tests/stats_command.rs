@@ -10,7 +10,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use common::http_fixture::{Answer, HttpFixture};
-use common::router::{BIN, Guard};
+use common::net::{SECOND, attitude, heartbeat, udp_frames, wait_until};
+use common::router::{BIN, Guard, Scratch, free_udp_port};
+use common::stats_router;
+use std::net::UdpSocket;
 
 /// Runs `mavtables stats ARGS` to its end (at most 20 s): status, stdout, stderr.
 fn stats(args: &[&str]) -> (Option<i32>, String, String) {
@@ -67,33 +70,74 @@ fn json(body: String) -> Answer {
     Answer::Http(200, "application/json", body.into_bytes())
 }
 
+/// Sends `frame` from `from` to the router; every frame of the scenario is processed
+/// before the next is sent (the test waits for what it causes).
+fn send(from: &UdpSocket, frame: &[u8]) {
+    from.send(frame).expect("send to the router");
+}
+
 #[test]
-fn prints_chains_rules_and_links_like_iptables() {
-    let server = HttpFixture::start(|path, _| match path {
-        "/stats" => json(fixture_stats(1000)),
-        _ => Answer::Http(404, "text/plain", b"no".to_vec()),
+fn counts_of_a_scripted_scenario_exactly() {
+    let scratch = Scratch::new("stats-cmd");
+    let (air, ground) = (free_udp_port(), free_udp_port());
+    let config = format!(
+        "udp {{ address 127.0.0.1; port {air}; }}\n\
+         udp {{ address 127.0.0.1; port {ground}; }}\n\
+         chain default {{\n    reject if HEARTBEAT from 2.0/8;\n    accept;\n}}\n\
+         default_action reject;\n"
+    );
+    let (mut router, port) = stats_router::start(&scratch, &config);
+    let peer = |to: u16| {
+        let s = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        s.connect(("127.0.0.1", to)).expect("connect");
+        s
+    };
+    let (gcs, vehicle, intruder) = (peer(ground), peer(air), peer(air));
+    let name = |s: &UdpSocket| s.local_addr().expect("addr").to_string();
+
+    // The ground station speaks first: the router learns it (nowhere to send yet).
+    send(&gcs, &heartbeat(255));
+    wait_until("the ground station's link", Duration::from_secs(10), || {
+        stats_router::stats(port)["links"]
+            .as_array()
+            .is_some_and(|l| l.len() == 1)
     });
-    let url = server.url();
-    let (code, out, err) = stats(&["--url", &url]);
+    // The vehicle: a HEARTBEAT and 10 ATTITUDE, each forwarded to the ground station.
+    send(&vehicle, &heartbeat(1));
+    assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1);
+    for n in 0..10 {
+        send(&vehicle, &attitude(1, n));
+        assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1, "ATTITUDE {n}");
+    }
+    // An intruder from system 2: its 3 HEARTBEATs are rejected by the first rule.
+    for _ in 0..3 {
+        send(&intruder, &heartbeat(2));
+    }
+    // One more ATTITUDE from the vehicle, after the intruder's frames on the same socket:
+    // once it arrives, they were handled.
+    send(&vehicle, &attitude(1, 10));
+    assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1, "ATTITUDE 10");
+    stats_router::wait_quiet(port);
+
+    let config_path = router.config.display().to_string();
+    let (code, out, err) = stats(&["--config", &config_path]);
     assert_eq!(code, Some(0), "stderr: {err}");
+    let (g, v, x) = (name(&gcs), name(&vehicle), name(&intruder));
+    let uptime = out
+        .lines()
+        .next()
+        .and_then(|l| l.rsplit_once(", up "))
+        .map(|(_, u)| u.to_string())
+        .expect("first line");
     let expected = format!(
         "\
-mavtables at {url}/stats, up 0:01:01
-
-chain default
-  packets  bytes  decided  rule
-        2     34        2  reject if HEARTBEAT from 2.0/8
-     1000  17000     1000  accept
-
-default_action reject: 0 packets, 0 bytes
-
-link             interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
-127.0.0.1:40001  udp 127.0.0.1:14550       1000           2   4.0    0.5       544         68      3      0          51  1.1
-  drops of 127.0.0.1:40001: filter rejected 2, queue full 1
+mavtables at http://127.0.0.1:{port}/stats, up {uptime}
+EXPECTED
 "
     );
-    assert_eq!(out, expected);
+    assert_eq!(out, expected, "{out}");
     assert_eq!(err, "");
+    let _ = router.pid();
 }
 
 #[test]

@@ -1,17 +1,24 @@
 //! The status page (`src/stats/page.html`) in a real browser: headless Chromium loads it
-//! over HTTP on 127.0.0.1 while the statistics change, lets its scripts run, and the
-//! rendered DOM is checked; a screenshot is saved and checked to be a plausible PNG.
+//! from the router's statistics endpoint while traffic flows, lets its scripts run, and
+//! the rendered DOM is checked; a screenshot is saved and checked to be a plausible PNG.
+//! A fixture server stands in for a router that stops answering and comes back.
 
 mod common;
 
 use common::browser;
 use common::http_fixture::{Answer, HttpFixture};
-use common::router::Scratch;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use common::net::{attitude, heartbeat, wait_until};
+use common::router::{Scratch, free_udp_port};
+use common::stats_router;
+use std::net::UdpSocket;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Duration;
 
 const PAGE: &str = include_str!("../src/stats/page.html");
 
-/// Statistics that change with each request `n`, in the shape the router serves.
+/// Statistics that change with each request `n`, in the shape the router serves (for
+/// the fixture server).
 fn stats(n: usize) -> String {
     let n = n as u64;
     let history: Vec<f64> = (0..(n + 20).min(300)).map(|i| (i % 7) as f64).collect();
@@ -78,58 +85,111 @@ fn text_after<'a>(dom: &'a str, marker: &str) -> Option<&'a str> {
     Some(&dom[open_end..open_end + dom[open_end..].find('<')?])
 }
 
+/// Card of the link `name` in `dom`: its section, up to the next one.
+fn card<'a>(dom: &'a str, name: &str) -> &'a str {
+    let start = format!("<section class=\"link\" data-link=\"{name}\"");
+    let at = dom
+        .find(&start)
+        .unwrap_or_else(|| panic!("no card for {name}: {dom}"));
+    let rest = &dom[at..];
+    &rest[..rest["<section".len()..]
+        .find("</section>")
+        .map_or(rest.len(), |i| i + "<section".len())]
+}
+
 #[test]
-fn shows_links_rules_and_charts_live() {
+fn shows_links_rules_and_charts_while_traffic_flows() {
     let scratch = Scratch::new("page");
-    let server = serve(|_| false);
-    let url = format!("{}/", server.url());
+    let (air, ground) = (free_udp_port(), free_udp_port());
+    let config = format!(
+        "udp {{ address 127.0.0.1; port {air}; }}\n\
+         udp {{ address 127.0.0.1; port {ground}; }}\n\
+         chain default {{\n    reject if HEARTBEAT from 2.0/8;\n    \
+         accept with priority 3 if ATTITUDE;\n    accept;\n}}\n\
+         default_action reject;\n"
+    );
+    let (_router, port) = stats_router::start(&scratch, &config);
+    let peer = |to: u16| {
+        let s = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        s.connect(("127.0.0.1", to)).expect("connect");
+        s
+    };
+    let (gcs, vehicle, intruder) = (peer(ground), peer(air), peer(air));
+    let name = |s: &UdpSocket| s.local_addr().expect("addr").to_string();
+    let (g, v, x) = (name(&gcs), name(&vehicle), name(&intruder));
+    gcs.send(&heartbeat(255)).expect("send");
+    wait_until("the ground station's link", Duration::from_secs(10), || {
+        stats_router::stats(port)["links"]
+            .as_array()
+            .is_some_and(|l| l.len() == 1)
+    });
+    for _ in 0..3 {
+        intruder.send(&heartbeat(2)).expect("send");
+    }
+    // The vehicle streams ATTITUDE at 20 Hz until the test ends.
+    let stop = Arc::new(AtomicBool::new(false));
+    let stopper = Arc::clone(&stop);
+    let streamer = std::thread::spawn(move || {
+        let mut n = 0u8;
+        while !stopper.load(Ordering::SeqCst) {
+            let _ = vehicle.send(&attitude(1, n));
+            n = n.wrapping_add(1);
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    });
+    wait_until("the vehicle's rate", Duration::from_secs(10), || {
+        let s = stats_router::stats(port);
+        s["links"].as_array().is_some_and(|links| {
+            links
+                .iter()
+                .any(|l| l["name"] == v.as_str() && l["rate_in_fps"].as_f64() > Some(0.0))
+        })
+    });
+
+    let url = format!("http://127.0.0.1:{port}/");
     let dom = browser::dom(&scratch, &url, 4000);
     assert_eq!(
         attribute(&dom, "<span id=\"state\"", "class"),
         Some("live"),
         "{dom}"
     );
-    // Each link has its card with its name, and a chart of its history.
-    for (name, points) in [("127.0.0.1:40001", None), ("/dev/ttyACM0", Some("1"))] {
-        let card = format!("<section class=\"link\" data-link=\"{name}\"");
-        let at = dom
-            .find(&card)
-            .unwrap_or_else(|| panic!("no card for {name}: {dom}"));
-        let rest = &dom[at..];
-        let rest = &rest[..rest[1..].find("<section").map_or(rest.len(), |i| i + 1)];
-        let n: usize = attribute(rest, "<svg class=\"chart\"", "data-points")
+    // A card per link, named as the router names it, each with a chart of its history.
+    for link in [&g, &v, &x] {
+        let c = card(&dom, link);
+        let points: usize = attribute(c, "<svg class=\"chart\"", "data-points")
             .and_then(|p| p.parse().ok())
-            .unwrap_or_else(|| panic!("no chart for {name}: {rest}"));
-        assert!(n > 0, "{name}: empty chart");
-        if let Some(p) = points {
-            assert_eq!(n.to_string(), p, "{name}");
-        }
-        assert!(rest.contains("<polyline class=\"in\" points=\""), "{rest}");
+            .unwrap_or_else(|| panic!("no chart for {link}: {c}"));
+        assert!(points > 0, "{link}: empty chart");
+        assert!(c.contains("<polyline class=\"in\" points=\""), "{c}");
     }
-    // The page asked more than once: the first link's history grew past its first size.
-    let points: usize = attribute(&dom, "<svg class=\"chart\"", "data-points")
-        .and_then(|p| p.parse().ok())
-        .expect("points");
-    assert!(points > 21, "the page did not refresh: {points} points");
-    assert_eq!(text_after(&dom, "class=\"n rate-in-fps\""), Some("10.0"));
-    assert_eq!(text_after(&dom, "class=\"n rate-out-fps\""), Some("1.0"));
-    // Rules with their counters; the rule text is shown as text, never as markup.
-    assert!(
-        dom.contains("data-chain=\"default\" data-rule=\"0\""),
-        "{dom}"
-    );
-    assert!(
-        dom.contains("reject if &lt;b&gt;HEARTBEAT&lt;/b&gt; from 2.0/8"),
-        "{dom}"
-    );
-    let packets: u64 = text_after(&dom, "class=\"n packets\"")
-        .and_then(|t| t.replace(',', "").parse().ok())
-        .expect("rule packets");
-    assert!(packets > 1, "{packets}");
-    assert!(dom.contains("drops: filter rejected"), "{dom}");
+    // The vehicle sends, the ground station receives: non-zero rates on both cards.
+    let rate = |c: &str, class: &str| -> f64 {
+        text_after(c, &format!("class=\"n {class}\""))
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("no {class} in {c}"))
+    };
+    assert!(rate(card(&dom, &v), "rate-in-fps") > 0.0, "{dom}");
+    assert!(rate(card(&dom, &g), "rate-out-fps") > 0.0, "{dom}");
+    assert!(card(&dom, &v).contains("addresses 1.1"), "{dom}");
+    // The rules with their counters: the intruder's HEARTBEATs were rejected by rule 0,
+    // the ATTITUDE stream accepted by rule 1.
+    let counter = |rule: usize, class: &str| -> u64 {
+        let row = format!("data-chain=\"default\" data-rule=\"{rule}\"");
+        let at = dom
+            .find(&row)
+            .unwrap_or_else(|| panic!("no rule {rule}: {dom}"));
+        text_after(&dom[at..], &format!("class=\"n {class}\""))
+            .and_then(|t| t.replace(',', "").parse().ok())
+            .unwrap_or_else(|| panic!("rule {rule} {class}"))
+    };
+    assert!(counter(0, "packets") >= 3 && counter(0, "decided") >= 3);
+    assert!(counter(1, "packets") > 0 && counter(1, "decided") > 0);
+    assert!(dom.contains("reject if HEARTBEAT from 2.0/8"), "{dom}");
 
     let png = scratch.dir.join("status-page.png");
     browser::screenshot(&scratch, &url, 3000, &png);
+    stop.store(true, Ordering::SeqCst);
+    let _ = streamer.join();
     let bytes = std::fs::read(&png).expect("screenshot written");
     assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
     assert!(

@@ -7,6 +7,7 @@ pub mod mavproxy;
 pub mod net;
 pub mod process;
 pub mod router;
+pub mod stats_router;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
