@@ -27,5 +27,6 @@ pub mod filter;
 pub mod io;
 pub mod routing;
 pub mod signing;
+pub mod stats;
 pub mod utc;
 pub mod wire;

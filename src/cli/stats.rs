@@ -108,6 +108,8 @@ fn from_config(explicit: Option<&str>, err: &mut dyn Write) -> Result<Endpoint, 
 
 /// Where the router running `config` serves its statistics, if it does.
 fn endpoint_of(config: &Config) -> Option<Endpoint> {
-    let _ = config;
-    None
+    config
+        .stats
+        .as_ref()
+        .map(|s| Endpoint::of_listener(s.address, s.port))
 }

@@ -60,6 +60,14 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<QueueSetting>,
     },
+    /// `stats { ... }`: the statistics endpoint (`address`, `port` and `allow`
+    /// statements, read as in a `udp` block).
+    Stats {
+        /// The `stats` keyword.
+        keyword: Span,
+        /// Its statements in order.
+        settings: Vec<SocketSetting>,
+    },
     /// `signing_state PATH;`: where the signing timestamps are saved.
     SigningState {
         /// The `signing_state` keyword.

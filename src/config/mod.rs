@@ -17,6 +17,7 @@ pub mod parser;
 pub mod printer;
 pub mod semantics;
 pub mod sockets;
+pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};

@@ -22,6 +22,8 @@ pub struct Config {
     /// Where the signing timestamps are saved (`signing_state PATH;`), as written; see
     /// [`Config::signing_state_path`] for the default.
     pub signing_state: Option<String>,
+    /// The statistics endpoint (the `stats` block), if configured.
+    pub stats: Option<StatsEndpoint>,
 }
 
 impl Config {
@@ -39,6 +41,7 @@ impl Config {
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
             signing_state: None,
+            stats: None,
         }
     }
 
@@ -281,6 +284,43 @@ impl QueueBounds {
     /// The largest bound, 2^40 bytes (1 TiB): far beyond any real memory, low enough that
     /// sums over many links cannot overflow.
     pub const MAX_BYTES: u64 = 1 << 40;
+}
+
+/// The `stats { address IP; port N; allow RANGE; }` block: where the HTTP statistics
+/// endpoint (`/metrics`, `/stats`, the status page) listens, and who may ask it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StatsEndpoint {
+    /// The address to listen on (default 127.0.0.1: this machine only).
+    pub address: IpAddr,
+    /// The TCP port (default [`StatsEndpoint::DEFAULT_PORT`]).
+    pub port: u16,
+    /// Clients must be in one of these ranges; empty means any address.
+    pub allow: Vec<IpRange>,
+}
+
+impl StatsEndpoint {
+    /// The port when the block gives none.
+    pub const DEFAULT_PORT: u16 = 9100;
+
+    /// Whether a client at `ip` may ask (an IPv4 client seen by an IPv6 socket counts
+    /// as its IPv4 address).
+    pub fn allows(&self, ip: IpAddr) -> bool {
+        let ip = match ip {
+            IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(ip, IpAddr::V4),
+            v4 => v4,
+        };
+        self.allow.is_empty() || self.allow.iter().any(|r| r.contains(ip))
+    }
+}
+
+impl Default for StatsEndpoint {
+    fn default() -> Self {
+        StatsEndpoint {
+            address: IpAddr::V4(Ipv4Addr::LOCALHOST),
+            port: Self::DEFAULT_PORT,
+            allow: Vec::new(),
+        }
+    }
 }
 
 /// Index of a chain in [`Config::chains`].

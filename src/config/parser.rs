@@ -18,7 +18,9 @@ const TOP_LEVEL: &[&str] = &[
     "queue",
     "chain",
     "signing_state",
+    "stats",
 ];
+const STATS_STATEMENTS: &[&str] = &["address", "port", "allow"];
 const UDP_STATEMENTS: &[&str] = &[
     "port",
     "address",
@@ -132,6 +134,14 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 let settings = self.block(span, Self::queue_setting)?;
                 Ok(Item::Queue {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "stats" => {
+                self.c.word();
+                let settings = self.block(span, Self::stats_setting)?;
+                Ok(Item::Stats {
                     keyword: span,
                     settings,
                 })
@@ -341,6 +351,32 @@ impl<'a> Parser<'a> {
         };
         let (span, _) = self.c.word().unwrap_or((at, ""));
         Ok(YesNo { keyword, span, yes })
+    }
+
+    /// A statement of a `stats` block: `address IP;`, `port N;` or `allow RANGE;` (read
+    /// as in a `udp` block).
+    fn stats_setting(&mut self) -> Result<SocketSetting> {
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "port" => {
+                self.c.word();
+                SocketSetting::Port(self.number("expected a valid port number")?)
+            }
+            "address" => {
+                self.c.word();
+                SocketSetting::Address(self.ip()?)
+            }
+            "allow" => {
+                self.c.word();
+                self.allow()?
+            }
+            _ => return Err(unsupported(span, word, STATS_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
     }
 
     fn queue_setting(&mut self) -> Result<QueueSetting> {

@@ -92,6 +92,7 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::Stats { keyword, settings } => self.socket(*keyword, "stats", settings),
             Item::SigningState { path, .. } => self.node(0, *path, "signing_state", Some(*path)),
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));

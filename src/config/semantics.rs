@@ -44,6 +44,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     // Line of the first `queue` block: a second one is an error.
     let mut queue_line: Option<usize> = None;
     let mut signing_state = None;
+    let mut stats = None;
+    // Line of the first `stats` block: a second one is an error.
+    let mut stats_line: Option<usize> = None;
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -94,6 +97,19 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                     queue = bounds.unwrap_or_default();
                 }
             }
+            Item::Stats { keyword, settings } => {
+                let endpoint = super::stats::check(ast, *keyword, settings, &mut cx.errors);
+                match stats_line {
+                    Some(first) => cx.error(
+                        Diagnostic::new(*keyword, "only one 'stats' block is allowed")
+                            .with_note(format!("the first 'stats' block is on line {first}")),
+                    ),
+                    None => {
+                        stats_line = Some(cx.line(*keyword));
+                        stats = endpoint;
+                    }
+                }
+            }
             Item::SigningState { path, .. } => {
                 signing_state = Some(ast.text(*path).to_string());
             }
@@ -137,6 +153,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             default_chain,
             queue,
             signing_state,
+            stats,
         },
         warnings,
     })

@@ -1,4 +1,6 @@
-//! A bounded memo of filter verdicts keyed by (message id, source, destination, signed).
+//! A bounded memo of filter verdicts keyed by (message id, source, destination, signed),
+//! each with the number of its rule walk's trace (see [`super::trace`]) so that answers
+//! from the memo still count the rules that matched.
 //!
 //! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was
 //! there. Memory is fixed at construction (16 bytes a slot); a lookup is one multiply,
@@ -27,10 +29,26 @@ pub struct CacheStats {
     pub misses: u64,
 }
 
+/// Set in a slot's `trace` word when the verdict is reject (trace numbers stay far below).
+const REJECT: u32 = 1 << 31;
+
 #[derive(Debug, Clone, Copy)]
 struct Slot {
     key: u64,
-    verdict: Verdict,
+    /// The accept priority (0 for a reject).
+    priority: i32,
+    /// The trace number, with [`REJECT`] set for a reject.
+    trace: u32,
+}
+
+impl Slot {
+    fn verdict(self) -> Verdict {
+        if self.trace & REJECT != 0 {
+            Verdict::Reject
+        } else {
+            Verdict::Accept(self.priority)
+        }
+    }
 }
 
 /// Fixed-size, direct-mapped verdict memo.
@@ -51,7 +69,8 @@ impl VerdictCache {
         };
         let empty = Slot {
             key: 0,
-            verdict: Verdict::Reject,
+            priority: 0,
+            trace: REJECT,
         };
         VerdictCache {
             slots: vec![empty; n].into_boxed_slice(),
@@ -86,12 +105,25 @@ impl VerdictCache {
         dest: Address,
         signed: bool,
     ) -> Option<Verdict> {
+        self.get_traced(message_id, source, dest, signed)
+            .map(|(v, _)| v)
+    }
+
+    /// The remembered verdict and its trace number, if any.
+    #[inline]
+    pub fn get_traced(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+    ) -> Option<(Verdict, u32)> {
         let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
         match self.slots.get(i) {
             Some(s) if s.key == key => {
                 self.stats.hits += 1;
-                Some(s.verdict)
+                Some((s.verdict(), s.trace & !REJECT))
             }
             _ => {
                 self.stats.misses += 1;
@@ -100,7 +132,7 @@ impl VerdictCache {
         }
     }
 
-    /// Remembers `verdict`, replacing the slot's previous entry.
+    /// Remembers `verdict` (with trace number 0), replacing the slot's previous entry.
     #[inline]
     pub fn insert(
         &mut self,
@@ -110,10 +142,33 @@ impl VerdictCache {
         signed: bool,
         verdict: Verdict,
     ) {
+        self.insert_traced(message_id, source, dest, signed, verdict, 0);
+    }
+
+    /// Remembers `verdict` and its trace number `trace` (below 2^31), replacing the
+    /// slot's previous entry.
+    #[inline]
+    pub fn insert_traced(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+        verdict: Verdict,
+        trace: u32,
+    ) {
         let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
+        let (priority, trace) = match verdict {
+            Verdict::Accept(p) => (p, trace & !REJECT),
+            Verdict::Reject => (0, trace | REJECT),
+        };
         if let Some(s) = self.slots.get_mut(i) {
-            *s = Slot { key, verdict };
+            *s = Slot {
+                key,
+                priority,
+                trace,
+            };
         }
     }
 

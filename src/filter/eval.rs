@@ -45,20 +45,56 @@ struct CallFrame {
 #[derive(Debug, Clone)]
 pub struct Evaluator {
     chains: Vec<Chain>,
+    /// The flat number of each chain's first rule (rules numbered across all chains in
+    /// chain order), for [`Evaluator::trace`].
+    first_rule: Vec<u32>,
     start: usize,
     default_action: DefaultAction,
     stack: Vec<CallFrame>,
+    /// The rules whose condition matched in the last walk, in walk order (flat numbers).
+    matched: Vec<u32>,
+    /// The accept or reject rule that decided the last walk, if one did.
+    decider: Option<u32>,
 }
 
 impl Evaluator {
     /// Takes the chains, start chain and default action of `config`.
     pub fn new(config: &Config) -> Self {
+        let mut first_rule = Vec::with_capacity(config.chains.len());
+        let mut n = 0u32;
+        for c in &config.chains {
+            first_rule.push(n);
+            n = n.saturating_add(u32::try_from(c.rules.len()).unwrap_or(u32::MAX));
+        }
         Evaluator {
             chains: config.chains.clone(),
+            first_rule,
             start: config.default_chain.0,
             default_action: config.default_action,
             stack: Vec::with_capacity(config.chains.len() + 1),
+            matched: Vec::new(),
+            decider: None,
         }
+    }
+
+    /// The flat number of rule `rule` of chain `chain` (rules numbered across all chains
+    /// in chain order, as [`Evaluator::trace`] gives them).
+    pub fn rule_number(&self, chain: usize, rule: usize) -> Option<u32> {
+        let first = *self.first_rule.get(chain)?;
+        let len = self.chains.get(chain)?.rules.len();
+        (rule < len).then(|| first.saturating_add(u32::try_from(rule).unwrap_or(u32::MAX)))
+    }
+
+    /// How many rules all chains hold together.
+    pub fn rule_count(&self) -> usize {
+        self.chains.iter().map(|c| c.rules.len()).sum()
+    }
+
+    /// What the last [`Evaluator::evaluate`] walked: the flat numbers of the rules whose
+    /// condition matched, in walk order (`call`/`goto` rules included), and the accept or
+    /// reject rule that decided (`None`: the default action decided).
+    pub fn trace(&self) -> (&[u32], Option<u32>) {
+        (&self.matched, self.decider)
     }
 
     /// The verdict for a packet with `message_id` from `source`, filtered for `dest`;
@@ -83,6 +119,8 @@ impl Evaluator {
     fn walk(&mut self, message_id: u32, source: Address, dest: Address, signed: bool) -> Outcome {
         let depth_limit = self.chains.len().max(1);
         self.stack.clear();
+        self.matched.clear();
+        self.decider = None;
         self.stack.push(CallFrame {
             chain: self.start,
             next_rule: 0,
@@ -104,9 +142,20 @@ impl Evaluator {
                     if !rule.condition.matches(message_id, source, dest, signed) {
                         continue;
                     }
+                    let number = self
+                        .first_rule
+                        .get(top.chain)
+                        .map_or(u32::MAX, |f| f.saturating_add((top.next_rule - 1) as u32));
+                    self.matched.push(number);
                     match rule.action {
-                        Action::Accept => Outcome::Accept(rule.priority),
-                        Action::Reject => Outcome::Reject,
+                        Action::Accept => {
+                            self.decider = Some(number);
+                            Outcome::Accept(rule.priority)
+                        }
+                        Action::Reject => {
+                            self.decider = Some(number);
+                            Outcome::Reject
+                        }
                         Action::Call(_) | Action::Goto(_) if self.stack.len() >= depth_limit => {
                             // Only a cyclic model gets this deep: refuse the packet.
                             return Outcome::Reject;
@@ -271,6 +320,7 @@ mod tests {
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
             signing_state: None,
+            stats: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -303,6 +353,7 @@ mod tests {
             default_chain: ChainId(3),
             queue: QueueBounds::default(),
             signing_state: None,
+            stats: None,
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(

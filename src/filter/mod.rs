@@ -24,12 +24,14 @@
 
 pub mod cache;
 pub mod eval;
+pub mod trace;
 
 use crate::address::Address;
 use crate::config::Config;
 
 pub use cache::{CacheStats, VerdictCache};
 pub use eval::Evaluator;
+pub use trace::{FilterCounts, RuleCounts, Traces};
 
 /// The filter's answer for one (packet, destination address) pair.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -50,11 +52,13 @@ impl Verdict {
     }
 }
 
-/// The configuration's chains and default action, with a memo of past verdicts.
+/// The configuration's chains and default action, with a memo of past verdicts and
+/// per-rule hit counts.
 #[derive(Debug, Clone)]
 pub struct Filter {
     evaluator: Evaluator,
     cache: VerdictCache,
+    traces: Traces,
 }
 
 impl Filter {
@@ -63,6 +67,7 @@ impl Filter {
         Filter {
             evaluator: Evaluator::new(config),
             cache: VerdictCache::new(cache::DEFAULT_SLOTS),
+            traces: Traces::default(),
         }
     }
 
@@ -72,12 +77,14 @@ impl Filter {
         Filter {
             evaluator: Evaluator::new(config),
             cache: VerdictCache::new(slots),
+            traces: Traces::default(),
         }
     }
 
     /// The verdict for a packet with `message_id` from `source`, filtered for `dest`;
     /// `signed` tells whether it arrived with an accepted signature (for `if signed` and
-    /// `if unsigned` rules).
+    /// `if unsigned` rules). Counted as an evaluation of no bytes (see
+    /// [`Filter::check_len`]).
     #[inline]
     pub fn check(
         &mut self,
@@ -86,12 +93,43 @@ impl Filter {
         dest: Address,
         signed: bool,
     ) -> Verdict {
-        if let Some(v) = self.cache.get(message_id, source, dest, signed) {
+        self.check_len(message_id, source, dest, signed, 0)
+    }
+
+    /// As [`Filter::check`], for a frame of `len` bytes: the evaluation is counted for
+    /// every rule whose condition matched and for the rule (or default action) that
+    /// decided, whether the verdict came from the memo or from a walk.
+    #[inline]
+    pub fn check_len(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+        len: usize,
+    ) -> Verdict {
+        if let Some((v, trace)) = self.cache.get_traced(message_id, source, dest, signed) {
+            self.traces.hit(trace, len);
             return v;
         }
         let v = self.evaluator.evaluate(message_id, source, dest, signed);
-        self.cache.insert(message_id, source, dest, signed, v);
+        let (matched, decider) = self.evaluator.trace();
+        match self.traces.intern(matched, decider) {
+            Some(trace) => {
+                self.traces.hit(trace, len);
+                self.cache
+                    .insert_traced(message_id, source, dest, signed, v, trace);
+            }
+            // The trace table is full: counted directly, and walked again next time.
+            None => self.traces.hit_direct(matched, decider, len),
+        }
         v
+    }
+
+    /// Per-rule counts (by flat rule number: chains in configuration order, their rules
+    /// in order) and the default action's.
+    pub fn counts(&self) -> FilterCounts {
+        self.traces.rule_counts(self.evaluator.rule_count())
     }
 
     /// Hits and misses of the memo so far.

@@ -6,6 +6,7 @@
 //! - `driver`: what every transport driver does for the loop;
 //! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
+//! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `log`: log lines and messages, written without ever blocking the loop;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
@@ -16,6 +17,7 @@ mod resolve;
 mod runtime;
 mod serial;
 mod state_file;
+pub mod stats_server;
 mod stream;
 #[allow(unsafe_code)]
 mod sys;

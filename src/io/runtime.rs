@@ -22,6 +22,7 @@ use super::driver::{Driver, Progress};
 use super::log::{self, Logger};
 use super::serial::SerialDriver;
 use super::state_file::StateFile;
+use super::stats_server::StatsServer;
 use super::sys::TimerFd;
 use super::tcp::{self, TcpListenerDriver, TcpStreamDriver};
 use super::udp::UdpDriver;
@@ -40,6 +41,10 @@ const TIMER: Token = Token(usize::MAX - 2);
 const WAKER: Token = Token(usize::MAX - 3);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
+/// How often a statistics snapshot is published.
+const STATS_INTERVAL: Duration = Duration::from_secs(1);
+/// How early a snapshot may be taken.
+const STATS_SLACK: Duration = Duration::from_millis(50);
 /// How long the log output may take to drain at exit.
 const LOG_DRAIN: Duration = Duration::from_secs(1);
 
@@ -72,6 +77,10 @@ struct Runtime {
     state_file: Option<StateFile>,
     /// When the signing state is saved next if it changed.
     next_state_save: Timestamp,
+    /// The statistics endpoint, if configured.
+    stats: Option<StatsServer>,
+    /// When the next statistics snapshot is due.
+    next_stats: Timestamp,
 }
 
 impl Runtime {
@@ -93,6 +102,21 @@ impl Runtime {
         if let Some(state) = self.engine.signing_state(false) {
             file.save(&state);
         }
+    }
+
+    /// Publishes a statistics snapshot to the endpoint when one is due (about once a
+    /// second; the core's one-second tick wakes the loop for it).
+    fn publish_stats(&mut self, now: Timestamp) {
+        let Some(server) = &self.stats else {
+            return;
+        };
+        // A little early rather than a whole tick late: the tick and this deadline
+        // fall in the same wake-up.
+        if now + STATS_SLACK < self.next_stats {
+            return;
+        }
+        self.next_stats = now + STATS_INTERVAL;
+        server.publish(self.engine.stats(now));
     }
 
     /// Writes the signing state a last time, marked as written at a clean exit.
@@ -278,6 +302,7 @@ impl Runtime {
         let now = self.now();
         self.engine.handle_timeout(now);
         self.handle_notices(now);
+        self.publish_stats(now);
         self.arm_timer(now);
         self.logger.flush();
         loop {
@@ -332,6 +357,7 @@ impl Runtime {
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
+            self.publish_stats(now);
             self.handle_notices(now);
             self.flush_all(now);
             self.handle_notices(now);
@@ -496,6 +522,25 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
     let state_file = open_state_file(config, &mut engine);
+    let stats = match &config.stats {
+        None => None,
+        Some(endpoint) => {
+            let server = StatsServer::start(endpoint).map_err(|e| {
+                io::Error::new(
+                    e.kind(),
+                    format!(
+                        "stats: cannot listen on {}: {e}",
+                        std::net::SocketAddr::new(endpoint.address, endpoint.port)
+                    ),
+                )
+            })?;
+            log::stderr_text(&format!(
+                "statistics on http://{}/ (/metrics, /stats)\n",
+                server.address()
+            ));
+            Some(server)
+        }
+    };
     let mut rt = Runtime {
         poll,
         engine,
@@ -508,6 +553,8 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
         start,
         state_file,
         next_state_save: Timestamp::ZERO,
+        stats,
+        next_stats: Timestamp::ZERO,
     };
     for driver in drivers {
         rt.add(driver, false);

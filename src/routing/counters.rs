@@ -22,6 +22,14 @@ pub struct LinkCounters {
     pub send_errors: u64,
     /// Frames from the link dropped for a bad checksum.
     pub bad_crc: u64,
+    /// Frames from the link dropped for a message id outside the dialect.
+    pub unknown_id: u64,
+    /// (Frame, this link) offers the filter rejected for every candidate address: the
+    /// frames that would have gone to this link but for a rule or the default action.
+    pub filter_rejected: u64,
+    /// Valid frames from the link that no link took or rejected: no other link reaches
+    /// their destination (a target nobody has heard of, or only the sender itself).
+    pub no_route: u64,
     /// Signatures checked, refused and added (links of interfaces with a key).
     pub signing: SigningCounters,
 }

@@ -22,7 +22,8 @@ pub enum Decision {
 /// `target`, on a link whose addresses are `pool`. A link that `reaches_unknown` (a
 /// client, whose peer may never speak first) takes broadcasts while its pool is empty,
 /// filtered for the broadcast address `0.0`. `signed` tells the filter whether the packet
-/// arrived with an accepted signature.
+/// arrived with an accepted signature; `len` (the frame's bytes) is what the filter's
+/// per-rule counters add.
 #[inline]
 // The packet's facts as plain values, as the per-link hot loop has them at hand.
 #[allow(clippy::too_many_arguments)]
@@ -35,6 +36,7 @@ pub fn decide(
     source: Address,
     target: Option<Address>,
     signed: bool,
+    len: usize,
 ) -> Decision {
     if pool.contains(source, now) {
         return Decision::Silent;
@@ -54,9 +56,10 @@ pub fn decide(
                     message_id,
                     source,
                     signed,
+                    len,
                 );
             }
-            best(filter, candidates, message_id, source, signed)
+            best(filter, candidates, message_id, source, signed, len)
         }
         // System broadcast S.0: every address of system S; none known is silent.
         Some(Address {
@@ -70,7 +73,7 @@ pub fn decide(
             if of_system.peek().is_none() {
                 return Decision::Silent;
             }
-            best(filter, of_system, message_id, source, signed)
+            best(filter, of_system, message_id, source, signed, len)
         }
         // Targeted S.C: filtered once for S.C itself if present, or (component-broadcast
         // fallback) if any component of S is present; otherwise silent.
@@ -79,7 +82,7 @@ pub fn decide(
             if !reachable {
                 return Decision::Silent;
             }
-            match filter.check(message_id, source, dest, signed) {
+            match filter.check_len(message_id, source, dest, signed, len) {
                 Verdict::Accept(p) => Decision::Accept(p),
                 Verdict::Reject => Decision::Reject,
             }
@@ -95,10 +98,11 @@ fn best(
     message_id: u32,
     source: Address,
     signed: bool,
+    len: usize,
 ) -> Decision {
     let mut best: Option<i32> = None;
     for dest in candidates {
-        if let Verdict::Accept(p) = filter.check(message_id, source, dest, signed) {
+        if let Verdict::Accept(p) = filter.check_len(message_id, source, dest, signed, len) {
             best = Some(best.map_or(p, |b| b.max(p)));
         }
     }

@@ -40,6 +40,7 @@ use super::queue::Packet;
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF};
 use super::remotes::Remotes;
 use super::router::{Output, Router, RouterOptions};
+use super::snapshot::{self, RuleBook};
 use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::address::Address;
@@ -47,6 +48,7 @@ use crate::config::{Config, PeerLimits};
 use crate::signing::sign;
 use crate::signing::state::SavedState;
 use crate::signing::{Edge, Signing, SigningKey};
+use crate::stats::{History, StatsSnapshot};
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);
@@ -115,6 +117,8 @@ pub struct Engine {
     unknown: UnknownIds,
     next_tick: Timestamp,
     signing: Signing,
+    rules: RuleBook,
+    history: History,
 }
 
 impl Engine {
@@ -128,6 +132,8 @@ impl Engine {
             unknown: UnknownIds::default(),
             next_tick: Timestamp::ZERO + TICK,
             signing: Signing::default(),
+            rules: RuleBook::new(config),
+            history: History::default(),
         }
     }
 
@@ -891,6 +897,20 @@ impl Engine {
             }
             Kind::Listener { .. } => true,
         }
+    }
+
+    /// Every counter at `now`, with the rates since the previous call (take one about
+    /// once a second: each call is a sample of the rate history).
+    pub fn stats(&mut self, now: Timestamp) -> StatsSnapshot {
+        snapshot::snapshot(
+            snapshot::Sources {
+                router: &mut self.router,
+                interfaces: &self.interfaces,
+                rules: &self.rules,
+                history: &mut self.history,
+            },
+            now,
+        )
     }
 
     /// The counters of every link (in creation order) and every interface, one line

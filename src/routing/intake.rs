@@ -149,7 +149,15 @@ impl ParseEvents for Intake<'_> {
 
     fn rejected(&mut self, _offset: u64, why: Rejection) {
         match why {
-            Rejection::UnknownId(id) => self.unknown.report(id, self.notices),
+            Rejection::UnknownId(id) => {
+                self.unknown.report(id, self.notices);
+                if let Some(c) = self
+                    .existing_link()
+                    .and_then(|id| self.router.counters_mut(id))
+                {
+                    c.unknown_id += 1;
+                }
+            }
             Rejection::BadCrc => {
                 if let Some(c) = self
                     .existing_link()

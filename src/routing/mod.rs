@@ -33,6 +33,8 @@ pub mod queue;
 pub mod reconnect;
 pub mod remotes;
 pub mod router;
+pub mod snapshot;
+pub mod sources;
 pub mod stale;
 pub mod time;
 

@@ -11,10 +11,11 @@ use super::event::{Event, LinkRef, PacketSummary};
 use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
 use super::queue::{DEFAULT_CAPACITY, DEFAULT_TOTAL_CAPACITY, Packet, PacketQueue, PushOutcome};
+use super::sources::{Sequences, SourceTable};
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
-use crate::filter::{CacheStats, Filter, cache};
+use crate::filter::{CacheStats, Filter, FilterCounts, cache};
 use crate::wire::Frame;
 
 /// Tunables of a [`Router`]; `Default` gives the original's behaviour.
@@ -77,6 +78,10 @@ pub struct Router {
     options: RouterOptions,
     /// Bytes held by all queues (each packet counted once per queue holding it).
     queued_bytes: usize,
+    /// Frames per (source, message type).
+    sources: SourceTable,
+    /// Sequence gaps per source.
+    sequences: Sequences,
 }
 
 impl Router {
@@ -93,6 +98,8 @@ impl Router {
             next_id: 0,
             options,
             queued_bytes: 0,
+            sources: SourceTable::default(),
+            sequences: Sequences::default(),
         }
     }
 
@@ -231,8 +238,11 @@ impl Router {
         let target = frame.target();
         let summary = PacketSummary::of(frame);
 
+        let len = frame.as_bytes().len();
+        self.sources.count(src, message_id);
+        self.sequences.count(src, frame.seq());
         let src_link = &mut self.links[si];
-        src_link.counters.received(frame.as_bytes().len());
+        src_link.counters.received(len);
         if src_link.learn(src, now) && level >= 1 {
             out.events.push(Event::NewComponent {
                 address: src,
@@ -248,6 +258,7 @@ impl Router {
         }
 
         let mut packet: Option<Packet> = None;
+        let mut routed = false;
         for i in 0..self.links.len() {
             let link = &self.links[i];
             let decision = decide(
@@ -259,10 +270,12 @@ impl Router {
                 src,
                 target,
                 signed,
+                len,
             );
             match decision {
                 Decision::Silent => {}
                 Decision::Accept(priority) => {
+                    routed = true;
                     let bytes = packet
                         .get_or_insert_with(|| Arc::from(frame.as_bytes()))
                         .clone();
@@ -278,6 +291,9 @@ impl Router {
                     }
                 }
                 Decision::Reject => {
+                    routed = true;
+                    self.links[i].counters.filter_rejected += 1;
+                    let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
                         out.events.push(Event::Rejected {
                             packet: summary,
@@ -287,6 +303,9 @@ impl Router {
                     }
                 }
             }
+        }
+        if !routed {
+            self.links[si].counters.no_route += 1;
         }
     }
 
@@ -394,6 +413,21 @@ impl Router {
     /// Hits and misses of the filter's verdict memo.
     pub fn filter_stats(&self) -> CacheStats {
         self.filter.cache_stats()
+    }
+
+    /// Per-rule hit counts of the filter (see [`Filter::counts`]).
+    pub fn filter_counts(&self) -> FilterCounts {
+        self.filter.counts()
+    }
+
+    /// Frames per (source, message type) (bounded; see [`SourceTable`]).
+    pub fn sources_mut(&mut self) -> &mut SourceTable {
+        &mut self.sources
+    }
+
+    /// Sequence gaps per source (bounded; see [`Sequences`]).
+    pub fn sequences(&self) -> &Sequences {
+        &self.sequences
     }
 }
 

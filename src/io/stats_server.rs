@@ -1,0 +1,249 @@
+//! The statistics endpoint: a small HTTP/1.1 server on threads of its own that answers
+//! `GET /metrics` (Prometheus text), `GET /stats` (JSON) and `GET /` (the status page)
+//! from the latest snapshot the event loop published.
+//!
+//! It never touches the event loop: the loop publishes a snapshot about once a second
+//! (one `Arc` swapped under a mutex held for nothing else), and requests are read,
+//! rendered and answered here. Each connection gets a thread, at most
+//! [`MAX_CONNECTIONS`] at once (further ones are closed at once); its request head must
+//! arrive whole within [`DEADLINE`] and fit in [`MAX_HEAD`] bytes, and its answer must
+//! be taken within [`DEADLINE`] too, so a silent or slow client holds one thread for at
+//! most twice that and never anything the router needs. One request per connection
+//! (`Connection: close`).
+
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crate::config::StatsEndpoint;
+use crate::stats::{self, StatsSnapshot};
+
+/// Longest a client may take to send its request head, and again to take the answer.
+pub const DEADLINE: Duration = Duration::from_secs(2);
+/// Largest request head read (bytes); a longer one is answered 431.
+pub const MAX_HEAD: usize = 8192;
+/// Connections served at once; more are closed unanswered.
+pub const MAX_CONNECTIONS: usize = 8;
+/// Most headers a request may have.
+const MAX_HEADERS: usize = 64;
+
+/// The latest snapshot, shared between the event loop and the server's threads.
+type Latest = Arc<Mutex<Arc<StatsSnapshot>>>;
+
+/// A running statistics endpoint; the event loop gives it snapshots.
+pub struct StatsServer {
+    latest: Latest,
+    address: SocketAddr,
+}
+
+impl StatsServer {
+    /// Listens as `endpoint` says and serves from a thread of its own.
+    pub fn start(endpoint: &StatsEndpoint) -> io::Result<StatsServer> {
+        let listener = TcpListener::bind(SocketAddr::new(endpoint.address, endpoint.port))?;
+        let address = listener.local_addr()?;
+        let latest: Latest = Arc::default();
+        let shared = latest.clone();
+        let endpoint = endpoint.clone();
+        thread::Builder::new()
+            .name("stats-http".into())
+            .spawn(move || accept_loop(&listener, &endpoint, &shared))?;
+        Ok(StatsServer { latest, address })
+    }
+
+    /// Where it listens.
+    pub fn address(&self) -> SocketAddr {
+        self.address
+    }
+
+    /// Makes `snapshot` the one requests are answered from.
+    pub fn publish(&self, snapshot: StatsSnapshot) {
+        let snapshot = Arc::new(snapshot);
+        *self.latest.lock().unwrap_or_else(PoisonError::into_inner) = snapshot;
+    }
+}
+
+fn accept_loop(listener: &TcpListener, endpoint: &StatsEndpoint, latest: &Latest) {
+    let active = Arc::new(AtomicUsize::new(0));
+    for stream in listener.incoming() {
+        let Ok(stream) = stream else {
+            // Out of descriptors and the like: let the moment pass.
+            thread::sleep(Duration::from_millis(10));
+            continue;
+        };
+        let allowed = stream.peer_addr().is_ok_and(|p| endpoint.allows(p.ip()));
+        if !allowed || active.load(Ordering::Acquire) >= MAX_CONNECTIONS {
+            continue; // dropped: closed unanswered
+        }
+        active.fetch_add(1, Ordering::AcqRel);
+        let (count, latest) = (active.clone(), latest.clone());
+        let spawned = thread::Builder::new()
+            .name("stats-conn".into())
+            .spawn(move || {
+                serve(stream, &latest);
+                count.fetch_sub(1, Ordering::AcqRel);
+            });
+        if spawned.is_err() {
+            // No thread: the connection was closed unanswered; its place is free again.
+            active.fetch_sub(1, Ordering::AcqRel);
+        }
+    }
+}
+
+/// Reads one request head and answers it, within the deadlines.
+fn serve(mut stream: TcpStream, latest: &Latest) {
+    let _ = stream.set_nodelay(true);
+    let Some(head) = read_head(&mut stream) else {
+        return;
+    };
+    let snapshot = latest
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .clone();
+    let answer = respond(&head, &snapshot);
+    let deadline = Instant::now() + DEADLINE;
+    let mut rest = &answer[..];
+    while !rest.is_empty() {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || stream.set_write_timeout(Some(left)).is_err() {
+            return;
+        }
+        match stream.write(rest) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => rest = &rest[n..],
+        }
+    }
+    let _ = stream.flush();
+}
+
+/// The request head (up to the blank line, or whatever arrived by the deadline if the
+/// client stopped, or [`MAX_HEAD`] bytes); `None` if nothing usable arrived.
+fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
+    let deadline = Instant::now() + DEADLINE;
+    let mut head = Vec::with_capacity(1024);
+    let mut chunk = [0u8; 1024];
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
+            return None;
+        }
+        let n = match stream.read(&mut chunk) {
+            Ok(0) | Err(_) => return None,
+            Ok(n) => n,
+        };
+        let room = MAX_HEAD + 1 - head.len().min(MAX_HEAD + 1);
+        head.extend_from_slice(&chunk[..n.min(room)]);
+        if head.len() > MAX_HEAD || head.windows(4).any(|w| w == b"\r\n\r\n") {
+            return Some(head);
+        }
+    }
+}
+
+/// The whole answer (status line, headers, body) to the request head `head`, from
+/// `snapshot`. Pure: no I/O, never panics, and bounded by the snapshot's size.
+pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
+    if head.len() > MAX_HEAD {
+        return answer(
+            431,
+            "text/plain; charset=utf-8",
+            b"request head too large\n",
+        );
+    }
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut request = httparse::Request::new(&mut headers);
+    match request.parse(head) {
+        Ok(httparse::Status::Complete(_)) => {}
+        Ok(httparse::Status::Partial) | Err(_) => {
+            return answer(400, "text/plain; charset=utf-8", b"bad request\n");
+        }
+    }
+    if request.method != Some("GET") {
+        return answer(405, "text/plain; charset=utf-8", b"only GET\n");
+    }
+    let path = request.path.unwrap_or("/");
+    let path = path.split(['?', '#']).next().unwrap_or(path);
+    match path {
+        "/metrics" => answer(
+            200,
+            stats::prometheus::CONTENT_TYPE,
+            stats::prometheus::render(snapshot).as_bytes(),
+        ),
+        "/stats" => answer(
+            200,
+            "application/json",
+            stats::json::render(snapshot).as_bytes(),
+        ),
+        "/" | "/index.html" => answer(
+            200,
+            "text/html; charset=utf-8",
+            stats::STATUS_PAGE.as_bytes(),
+        ),
+        _ => answer(404, "text/plain; charset=utf-8", b"not found\n"),
+    }
+}
+
+fn answer(status: u16, content_type: &str, body: &[u8]) -> Vec<u8> {
+    let reason = match status {
+        200 => "OK",
+        400 => "Bad Request",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        431 => "Request Header Fields Too Large",
+        _ => "Error",
+    };
+    let allow = if status == 405 { "Allow: GET\r\n" } else { "" };
+    let mut out = format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-store\r\n{allow}Connection: close\r\n\r\n",
+        body.len()
+    )
+    .into_bytes();
+    out.extend_from_slice(body);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(head: &[u8]) -> String {
+        let a = respond(head, &StatsSnapshot::default());
+        String::from_utf8_lossy(&a)
+            .lines()
+            .next()
+            .unwrap_or("")
+            .to_string()
+    }
+
+    #[test]
+    fn routes_and_errors() {
+        assert_eq!(
+            status(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n"),
+            "HTTP/1.1 200 OK"
+        );
+        assert_eq!(
+            status(b"GET /stats?x=1 HTTP/1.0\r\n\r\n"),
+            "HTTP/1.1 200 OK"
+        );
+        assert_eq!(status(b"GET / HTTP/1.1\r\n\r\n"), "HTTP/1.1 200 OK");
+        assert_eq!(
+            status(b"GET /nope HTTP/1.1\r\n\r\n"),
+            "HTTP/1.1 404 Not Found"
+        );
+        assert_eq!(
+            status(b"POST /stats HTTP/1.1\r\n\r\n"),
+            "HTTP/1.1 405 Method Not Allowed"
+        );
+        assert_eq!(
+            status(b"GET /stats HTTP/1.1\r\n"),
+            "HTTP/1.1 400 Bad Request"
+        );
+        assert_eq!(
+            status(b"\x00\xff garbage\r\n\r\n"),
+            "HTTP/1.1 400 Bad Request"
+        );
+        let big = vec![b'a'; MAX_HEAD + 1];
+        assert_eq!(status(&big), "HTTP/1.1 431 Request Header Fields Too Large");
+    }
+}

@@ -1,0 +1,319 @@
+//! The snapshot in the Prometheus text exposition format 0.0.4 (`/metrics`): every
+//! metric family with `# HELP` and `# TYPE`, counters named `…_total`, label values
+//! escaped (`\\`, `\"`, `\n`).
+
+use std::fmt::Write;
+
+use super::snapshot::{LinkStats, StatsSnapshot};
+
+/// The content type of the text format.
+pub const CONTENT_TYPE: &str = "text/plain; version=0.0.4; charset=utf-8";
+
+/// `value` escaped for a label value.
+pub fn escape_label(value: &str) -> String {
+    let mut s = String::with_capacity(value.len());
+    for c in value.chars() {
+        match c {
+            '\\' => s.push_str("\\\\"),
+            '"' => s.push_str("\\\""),
+            '\n' => s.push_str("\\n"),
+            c => s.push(c),
+        }
+    }
+    s
+}
+
+/// Writes metric families into one text.
+struct Out(String);
+
+impl Out {
+    fn family(&mut self, name: &str, kind: &str, help: &str) {
+        let _ = writeln!(self.0, "# HELP {name} {help}");
+        let _ = writeln!(self.0, "# TYPE {name} {kind}");
+    }
+
+    fn sample(&mut self, name: &str, labels: &[(&str, &str)], value: impl std::fmt::Display) {
+        self.0.push_str(name);
+        if !labels.is_empty() {
+            self.0.push('{');
+            for (i, (k, v)) in labels.iter().enumerate() {
+                if i > 0 {
+                    self.0.push(',');
+                }
+                let _ = write!(self.0, "{k}=\"{}\"", escape_label(v));
+            }
+            self.0.push('}');
+        }
+        let _ = writeln!(self.0, " {value}");
+    }
+
+    /// One family with a sample per link.
+    fn per_link(
+        &mut self,
+        links: &[LinkStats],
+        name: &str,
+        kind: &str,
+        help: &str,
+        value: impl Fn(&LinkStats) -> f64,
+    ) {
+        self.family(name, kind, help);
+        for l in links {
+            let labels = [
+                ("link", l.name.as_str()),
+                ("interface", l.interface.as_str()),
+            ];
+            self.sample(name, &labels, value(l));
+        }
+    }
+}
+
+/// `snapshot` as Prometheus text.
+pub fn render(s: &StatsSnapshot) -> String {
+    let mut o = Out(String::with_capacity(4096));
+    o.family(
+        "mavtables_uptime_seconds",
+        "gauge",
+        "Seconds since the router started.",
+    );
+    o.sample("mavtables_uptime_seconds", &[], s.uptime_s);
+    let links = &s.links;
+    type Field = (
+        &'static str,
+        &'static str,
+        &'static str,
+        fn(&LinkStats) -> f64,
+    );
+    let per_link: [Field; 10] = [
+        (
+            "mavtables_link_frames_in_total",
+            "counter",
+            "Valid frames received from the link.",
+            |l| l.frames_in as f64,
+        ),
+        (
+            "mavtables_link_bytes_in_total",
+            "counter",
+            "Bytes of the frames received from the link.",
+            |l| l.bytes_in as f64,
+        ),
+        (
+            "mavtables_link_frames_out_total",
+            "counter",
+            "Frames sent to the link.",
+            |l| l.frames_out as f64,
+        ),
+        (
+            "mavtables_link_bytes_out_total",
+            "counter",
+            "Bytes of the frames sent to the link.",
+            |l| l.bytes_out as f64,
+        ),
+        (
+            "mavtables_link_rate_in_fps",
+            "gauge",
+            "Frames received per second over the last second.",
+            |l| l.rate_in_fps,
+        ),
+        (
+            "mavtables_link_rate_out_fps",
+            "gauge",
+            "Frames sent per second over the last second.",
+            |l| l.rate_out_fps,
+        ),
+        (
+            "mavtables_link_rate_in_bps",
+            "gauge",
+            "Bits received per second over the last second.",
+            |l| l.rate_in_bps,
+        ),
+        (
+            "mavtables_link_rate_out_bps",
+            "gauge",
+            "Bits sent per second over the last second.",
+            |l| l.rate_out_bps,
+        ),
+        (
+            "mavtables_queue_bytes",
+            "gauge",
+            "Bytes the link's queue holds.",
+            |l| l.queue_bytes as f64,
+        ),
+        (
+            "mavtables_queue_high_water_bytes",
+            "gauge",
+            "The most bytes the link's queue held at once.",
+            |l| l.queue_high_water as f64,
+        ),
+    ];
+    for (name, kind, help, value) in per_link {
+        o.per_link(links, name, kind, help, value);
+    }
+    o.family(
+        "mavtables_drops_total",
+        "counter",
+        "Frames dropped, by link and reason.",
+    );
+    for l in links {
+        for (reason, n) in l.drops.named() {
+            let labels = [
+                ("link", l.name.as_str()),
+                ("interface", l.interface.as_str()),
+                ("reason", reason),
+            ];
+            o.sample("mavtables_drops_total", &labels, n);
+        }
+    }
+    type IfField = (
+        &'static str,
+        &'static str,
+        fn(&super::InterfaceStats) -> u64,
+    );
+    let per_interface: [IfField; 5] = [
+        (
+            "mavtables_interface_frames_total",
+            "Valid frames the interface's parser found.",
+            |i| i.frames,
+        ),
+        (
+            "mavtables_interface_bad_crc_total",
+            "Frames with a bad checksum.",
+            |i| i.bad_crc,
+        ),
+        (
+            "mavtables_interface_unknown_id_total",
+            "Frames with a message id outside the dialect.",
+            |i| i.unknown_id,
+        ),
+        (
+            "mavtables_interface_junk_bytes_total",
+            "Bytes that were not part of any frame.",
+            |i| i.junk_bytes,
+        ),
+        (
+            "mavtables_interface_io_errors_total",
+            "Receive, send and open errors.",
+            |i| i.io_errors,
+        ),
+    ];
+    for (name, help, value) in per_interface {
+        o.family(name, "counter", help);
+        for i in &s.interfaces {
+            o.sample(name, &[("interface", i.label.as_str())], value(i));
+        }
+    }
+    type RuleField = (&'static str, &'static str, fn(&super::RuleStats) -> u64);
+    let per_rule: [RuleField; 3] = [
+        (
+            "mavtables_rule_packets_total",
+            "(Packet, destination) evaluations the rule's condition matched.",
+            |r| r.packets,
+        ),
+        (
+            "mavtables_rule_bytes_total",
+            "Frame bytes of the evaluations the rule's condition matched.",
+            |r| r.bytes,
+        ),
+        (
+            "mavtables_rule_decided_total",
+            "Evaluations the rule decided (accept or reject).",
+            |r| r.decided,
+        ),
+    ];
+    for (name, help, value) in per_rule {
+        o.family(name, "counter", help);
+        for c in &s.chains {
+            for (i, r) in c.rules.iter().enumerate() {
+                let index = i.to_string();
+                let labels = [
+                    ("chain", c.name.as_str()),
+                    ("rule", index.as_str()),
+                    ("text", r.text.as_str()),
+                ];
+                o.sample(name, &labels, value(r));
+            }
+        }
+    }
+    let d = &s.default_action;
+    let action = [("action", d.action.as_str())];
+    o.family(
+        "mavtables_default_action_packets_total",
+        "counter",
+        "Evaluations no rule decided.",
+    );
+    o.sample("mavtables_default_action_packets_total", &action, d.packets);
+    o.family(
+        "mavtables_default_action_bytes_total",
+        "counter",
+        "Frame bytes of the evaluations no rule decided.",
+    );
+    o.sample("mavtables_default_action_bytes_total", &action, d.bytes);
+    o.family(
+        "mavtables_source_frames_total",
+        "counter",
+        "Frames received per source address and message type (bounded table).",
+    );
+    for x in &s.sources {
+        let labels = [
+            ("source", x.source.as_str()),
+            ("message", x.message.as_str()),
+        ];
+        o.sample("mavtables_source_frames_total", &labels, x.frames);
+    }
+    o.family(
+        "mavtables_sequence_received_total",
+        "counter",
+        "Frames received per source address.",
+    );
+    for x in &s.sequence_gaps {
+        o.sample(
+            "mavtables_sequence_received_total",
+            &[("source", x.source.as_str())],
+            x.received,
+        );
+    }
+    o.family(
+        "mavtables_sequence_lost_total",
+        "counter",
+        "Frames lost before the router, by the source's sequence numbers.",
+    );
+    for x in &s.sequence_gaps {
+        o.sample(
+            "mavtables_sequence_lost_total",
+            &[("source", x.source.as_str())],
+            x.lost,
+        );
+    }
+    o.family(
+        "mavtables_queued_bytes",
+        "gauge",
+        "Bytes all queues hold together.",
+    );
+    o.sample("mavtables_queued_bytes", &[], s.queued_bytes);
+    o.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stats::snapshot::LinkStats;
+
+    #[test]
+    fn labels_are_escaped_and_every_family_is_typed() {
+        let s = StatsSnapshot {
+            links: vec![LinkStats {
+                name: "a\"b\\c\nd".into(),
+                frames_in: 7,
+                ..LinkStats::default()
+            }],
+            ..StatsSnapshot::default()
+        };
+        let text = render(&s);
+        assert!(text.contains(
+            "mavtables_link_frames_in_total{link=\"a\\\"b\\\\c\\nd\",interface=\"\"} 7\n"
+        ));
+        for line in text.lines().filter(|l| !l.starts_with('#')) {
+            let name = line.split(['{', ' ']).next().unwrap_or("");
+            assert!(text.contains(&format!("# TYPE {name} ")), "{name} untyped");
+        }
+    }
+}
