@@ -86,7 +86,7 @@ fn counts_of_a_scripted_scenario_exactly() {
          chain default {{\n    reject if HEARTBEAT from 2.0/8;\n    accept;\n}}\n\
          default_action reject;\n"
     );
-    let (mut router, port) = stats_router::start(&scratch, &config);
+    let (router, port) = stats_router::start(&scratch, &config);
     let peer = |to: u16| {
         let s = UdpSocket::bind("127.0.0.1:0").expect("bind");
         s.connect(("127.0.0.1", to)).expect("connect");
@@ -119,6 +119,11 @@ fn counts_of_a_scripted_scenario_exactly() {
     assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1, "ATTITUDE 10");
     stats_router::wait_quiet(port);
 
+    // Rule 0 decided the intruder's 3 HEARTBEATs for 2 destinations each (6 × 21 bytes);
+    // rule 1 the vehicle's HEARTBEAT and 11 ATTITUDE for the ground station and the last
+    // ATTITUDE for the intruder too (21 + 12 × 40 bytes). Rejections count on the link
+    // they were kept from; the ground station's first HEARTBEAT had nowhere to go. One
+    // frame at a time was queued (40 bytes and the queue's 32 of bookkeeping).
     let config_path = router.config.display().to_string();
     let (code, out, err) = stats(&["--config", &config_path]);
     assert_eq!(code, Some(0), "stderr: {err}");
@@ -132,12 +137,25 @@ fn counts_of_a_scripted_scenario_exactly() {
     let expected = format!(
         "\
 mavtables at http://127.0.0.1:{port}/stats, up {uptime}
-EXPECTED
+
+chain default
+  packets  bytes  decided  rule
+        6    126        6  reject if HEARTBEAT from 2.0/8
+       13    501       13  accept
+
+default_action reject: 0 packets, 0 bytes
+
+link             interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
+{g}  udp 127.0.0.1:{ground}          1          12   0.0    0.0         0          0      4      0          72  255.1
+{v}  udp 127.0.0.1:{air}         12           0   0.0    0.0         0          0      3      0           0  1.1
+{x}  udp 127.0.0.1:{air}          3           1   0.0    0.0         0          0      0      0          72  2.1
+  drops of {g}: filter rejected 3, no route 1
+  drops of {v}: filter rejected 3
 "
     );
     assert_eq!(out, expected, "{out}");
     assert_eq!(err, "");
-    let _ = router.pid();
+    router.stop();
 }
 
 #[test]
