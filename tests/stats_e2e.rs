@@ -457,3 +457,57 @@ fn silent_and_slow_clients_stall_neither_routing_nor_other_requests() {
     drop(silent);
     router.stop();
 }
+
+/// The `stats` section of docs/configuration.md: its block is valid, and its JSON
+/// example has exactly the fields the router writes (top level, link, interface).
+#[test]
+fn the_documented_block_and_json_are_the_real_ones() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs/configuration.md");
+    let section = doc
+        .split("## `stats`")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("stats section");
+    let blocks: Vec<&str> = section.split("```").skip(1).step_by(2).collect();
+    let stats = mavtables::config::load(blocks[0])
+        .expect("the documented block loads")
+        .config
+        .stats
+        .expect("a stats endpoint");
+    assert_eq!(stats.port, 9100);
+    let example: Value = serde_json::from_str(blocks[1].trim_start_matches("json\n"))
+        .expect("the documented JSON parses");
+    let snapshot = mavtables::stats::StatsSnapshot {
+        links: vec![Default::default()],
+        interfaces: vec![Default::default()],
+        chains: vec![mavtables::stats::ChainStats {
+            rules: vec![Default::default()],
+            ..Default::default()
+        }],
+        sources: vec![Default::default()],
+        sequence_gaps: vec![Default::default()],
+        ..Default::default()
+    };
+    let real = mavtables::stats::json::to_value(&snapshot);
+    let keys = |v: &Value| -> Vec<String> {
+        let mut k: Vec<String> = v.as_object().expect("an object").keys().cloned().collect();
+        k.sort();
+        k
+    };
+    assert_eq!(keys(&example), keys(&real));
+    for part in ["links", "interfaces", "sources", "sequence_gaps"] {
+        assert_eq!(keys(&example[part][0]), keys(&real[part][0]), "{part}");
+    }
+    assert_eq!(
+        keys(&example["links"][0]["drops"]),
+        keys(&real["links"][0]["drops"])
+    );
+    assert_eq!(
+        keys(&example["chains"][0]["rules"][0]),
+        keys(&real["chains"][0]["rules"][0])
+    );
+}
