@@ -208,8 +208,18 @@ fn errors_are_one_line_and_exit_1() {
         assert_eq!(err.lines().count(), 1, "{err}");
     }
 
+    let scratch = Scratch::new("stats-cmd-errors");
+    let no_block = scratch.path("none.conf");
+    std::fs::write(&no_block, "udp { port 14550; }\n").expect("write");
+    let any_port = scratch.path("any.conf");
+    std::fs::write(&any_port, "stats { port 0; }\n").expect("write");
+    let broken = scratch.path("broken.conf");
+    std::fs::write(&broken, "stats { port 9100 }\n").expect("write");
     for (args, want) in [
-        (&["--url", "ftp://x:1"][..], "only http:// is understood"),
+        (&["--config", &no_block][..], "has no stats block"),
+        (&["--config", &any_port], "says port 0 (any free port)"),
+        (&["--config", &broken], "is not a valid configuration"),
+        (&["--url", "ftp://x:1"], "only http:// is understood"),
         (
             &["--url", "http://a:1", "--config", "b"],
             "use either --config or --url",

@@ -155,16 +155,12 @@ chain tail {{
     assert_eq!(udp_frames(&vehicle, 3, 5 * SECOND).len(), 3);
 
     // The vehicle's traffic for the ground station.
-    let att_len = (0..10)
-        .map(|_| vsend(ATTITUDE, 7, 28, &mut seq))
-        .sum::<usize>();
+    let att_len = (0..10).map(|_| vsend(ATTITUDE, 7, 28, &mut seq)).sum::<usize>();
     let time_len = (0..4)
         .map(|_| vsend(SYSTEM_TIME, 7, 12, &mut seq))
         .sum::<usize>();
     seq = seq.wrapping_add(3); // three frames "lost on the radio"
-    let vfr_len = (0..3)
-        .map(|_| vsend(VFR_HUD, 7, 20, &mut seq))
-        .sum::<usize>();
+    let vfr_len = (0..3).map(|_| vsend(VFR_HUD, 7, 20, &mut seq)).sum::<usize>();
     let status_len = (0..2)
         .map(|_| vsend(SYS_STATUS, 7, 31, &mut seq))
         .sum::<usize>();
@@ -222,19 +218,24 @@ chain tail {{
         .iter()
         .flat_map(|c| {
             let chain = c["name"].as_str().unwrap_or("").to_string();
-            c["rules"].as_array().expect("rules").iter().map(move |r| {
-                (
-                    chain.clone(),
-                    r["text"].as_str().unwrap_or("").to_string(),
-                    n(&r["packets"]),
-                    n(&r["bytes"]),
-                    n(&r["decided"]),
-                )
-            })
+            c["rules"]
+                .as_array()
+                .expect("rules")
+                .iter()
+                .map(move |r| {
+                    (
+                        chain.clone(),
+                        r["text"].as_str().unwrap_or("").to_string(),
+                        n(&r["packets"]),
+                        n(&r["bytes"]),
+                        n(&r["decided"]),
+                    )
+                })
         })
         .collect();
-    let row =
-        |c: &str, t: &str, p: u64, b: usize, d: u64| (c.to_string(), t.to_string(), p, b as u64, d);
+    let row = |c: &str, t: &str, p: u64, b: usize, d: u64| {
+        (c.to_string(), t.to_string(), p, b as u64, d)
+    };
     let expected_rules = vec![
         row("default", "reject if SYSTEM_TIME", 4, time_len, 4),
         row(
@@ -431,8 +432,7 @@ fn silent_and_slow_clients_stall_neither_routing_nor_other_requests() {
     let (a, _) = peer();
     let (b, _) = peer();
     let to = ("127.0.0.1", udp_port);
-    b.send_to(&frame(HEARTBEAT, 255, 0, 3, 9), to)
-        .expect("send");
+    b.send_to(&frame(HEARTBEAT, 255, 0, 3, 9), to).expect("send");
     stats_when(http_port, "the receiver's link", |s| {
         s["links"].as_array().is_some_and(|l| l.len() == 1)
     });

@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 use super::arg_reader::{Arg, ArgReader, OptionSpec};
 use super::find_config;
 use crate::commands::stats::{self, Endpoint};
-use crate::config::{self, Config, render_errors};
+use crate::config::{self, render_errors};
 
 const USAGE: &str = "\
 usage: mavtables stats [--config FILE | --url http://HOST:PORT] [--watch]
@@ -99,17 +99,13 @@ fn from_config(explicit: Option<&str>, err: &mut dyn Write) -> Result<Endpoint, 
             return Err(format!("{path} is not a valid configuration"));
         }
     };
-    endpoint_of(&loaded.config).ok_or_else(|| {
-        format!(
+    match &loaded.config.stats {
+        None => Err(format!(
             "{path} has no stats block, so the router serves no statistics; add `stats {{ port 9100; }}` and restart it"
-        )
-    })
-}
-
-/// Where the router running `config` serves its statistics, if it does.
-fn endpoint_of(config: &Config) -> Option<Endpoint> {
-    config
-        .stats
-        .as_ref()
-        .map(|s| Endpoint::of_listener(s.address, s.port))
+        )),
+        Some(block) if block.port == 0 => Err(format!(
+            "the stats block of {path} says port 0 (any free port): ask --url http://HOST:PORT with the port the router said at start"
+        )),
+        Some(block) => Ok(Endpoint::of_listener(block.address, block.port)),
+    }
 }
