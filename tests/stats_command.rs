@@ -295,3 +295,71 @@ fn watch_redraws_every_second_and_ends_cleanly_on_ctrl_c() {
     let third = text.find("300  accept").expect("third");
     assert!(first_100 < gone && gone < third, "{text}");
 }
+
+#[test]
+fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
+    let server = HttpFixture::start(|_, n| json(fixture_stats(100 * n as u64)));
+    let (mut master, mut slave) = (0, 0);
+    // SAFETY: openpty writes two descriptors; the name, termios and size are optional.
+    let r = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    assert_eq!(r, 0, "openpty: {}", std::io::Error::last_os_error());
+    // SAFETY: both descriptors were just opened and are owned by nobody else.
+    let (master, slave) = unsafe {
+        use std::os::fd::FromRawFd;
+        (
+            std::fs::File::from_raw_fd(master),
+            std::os::fd::OwnedFd::from_raw_fd(slave),
+        )
+    };
+    let child = Command::new(BIN)
+        .args(["stats", "--watch", "--url", &server.url()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(slave))
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let pid = child.id() as i32;
+    let mut guard = Guard(Some(child));
+    // The terminal's output, read until the child's end closes the last slave descriptor.
+    let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
+    std::thread::spawn(move || {
+        let mut master = master;
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = master.read(&mut buf) {
+            if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
+                break;
+            }
+        }
+    });
+    let mut screen = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while !String::from_utf8_lossy(&screen).contains("      200   3400      200  accept") {
+        assert!(Instant::now() < deadline, "no second picture: {screen:?}");
+        if let Ok(bytes) = rx.recv_timeout(Duration::from_millis(100)) {
+            screen.extend(bytes);
+        }
+    }
+    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let status = guard
+        .wait(Duration::from_secs(5))
+        .expect("--watch did not end within 5 s of Ctrl-C");
+    assert_eq!(status.code(), Some(0));
+    while let Ok(bytes) = rx.recv_timeout(Duration::from_millis(500)) {
+        screen.extend(bytes);
+    }
+    let text = String::from_utf8_lossy(&screen);
+    // The alternate screen and a hidden cursor while it runs; each picture drawn from
+    // the top-left corner; on Ctrl-C the cursor and the normal screen come back.
+    assert!(text.starts_with("\x1b[?1049h\x1b[?25l\x1b[H"), "{text:?}");
+    assert!(text.matches("\x1b[H").count() >= 2, "{text:?}");
+    assert!(text.ends_with("\x1b[?25h\x1b[?1049l"), "{text:?}");
+}
