@@ -204,4 +204,24 @@ mod tests {
             .is_err()
         );
     }
+
+    proptest::proptest! {
+        /// Whatever a server sends back, the answer is a body or an error, never a panic.
+        #[test]
+        fn any_bytes_are_an_answer_or_an_error(
+            head in proptest::sample::select(vec![
+                "HTTP/1.1 200 OK\r\nContent-Length: 5\r\n\r\n",
+                "HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n",
+                "HTTP/1.0 200 OK\r\n\r\n",
+                "",
+            ]),
+            tail in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200),
+        ) {
+            let mut raw = head.as_bytes().to_vec();
+            raw.extend(&tail);
+            let _ = parse_response(&raw);
+            let _ = complete_length(&raw);
+            let _ = dechunk(&tail);
+        }
+    }
 }
