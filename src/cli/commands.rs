@@ -52,7 +52,7 @@ const REPLAY_OPTIONS: &[OptionSpec] = &[
     OptionSpec::value("speed"),
 ];
 
-/// Runs `inspect` or `replay` if `args` (without the program name) starts with one.
+/// Runs `inspect`, `replay` or `stats` if `args` (without the program name) starts with one.
 pub fn run_subcommand(
     args: &[String],
     out: &mut dyn Write,
@@ -62,6 +62,7 @@ pub fn run_subcommand(
     let result = match name.as_str() {
         "inspect" => run_inspect(rest, out, err),
         "replay" => run_replay(rest, out, err),
+        "stats" => super::stats::run_stats(rest, out, err),
         _ => return None,
     };
     Some(match result {

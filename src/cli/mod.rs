@@ -1,7 +1,7 @@
 //! Command-line interface of the `mavtables` binary: options (one reader, [`arg_reader`],
 //! for the main command and its subcommands), finding and loading the configuration or
 //! building one from [`endpoints`], `--ast`, `--check`, and dispatching to the `inspect`
-//! and `replay` subcommands.
+//! and `replay` subcommands and to `stats`.
 
 pub mod arg_reader;
 mod args;
@@ -9,6 +9,7 @@ mod commands;
 pub mod endpoints;
 mod run;
 mod search;
+mod stats;
 mod text;
 
 pub use args::{Options, parse};

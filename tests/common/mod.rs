@@ -1,10 +1,13 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod browser;
+pub mod http_fixture;
 pub mod mavproxy;
 pub mod net;
 pub mod process;
 pub mod router;
+pub mod stats_router;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -1,0 +1,227 @@
+//! The one HTTP request `mavtables stats` makes: a GET over a `TcpStream`, bounded in
+//! time and size, whose 200 answer's body is returned. Enough for the router's own
+//! statistics endpoint; not a general HTTP client.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::time::{Duration, Instant};
+
+/// The largest answer read (a router with thousands of sources stays far below it).
+const MAX_RESPONSE: usize = 16 << 20;
+
+/// `GET path` from `authority` (`HOST:PORT`, IPv6 in brackets), the whole exchange
+/// within `timeout`; the body of a `200` answer, else one line saying what went wrong.
+pub fn get(authority: &str, path: &str, timeout: Duration) -> Result<Vec<u8>, String> {
+    let deadline = Instant::now() + timeout;
+    let addrs: Vec<SocketAddr> = authority
+        .to_socket_addrs()
+        .map_err(|e| format!("cannot resolve {authority}: {e}"))?
+        .collect();
+    let mut stream = connect(authority, &addrs, timeout)?;
+    let request = format!(
+        "GET {path} HTTP/1.1\r\nHost: {authority}\r\nAccept: application/json\r\n\
+         User-Agent: mavtables/{}\r\nConnection: close\r\n\r\n",
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = stream.set_write_timeout(Some(timeout));
+    stream
+        .write_all(request.as_bytes())
+        .map_err(|e| format!("{authority}: sending the request failed: {e}"))?;
+    let raw = read_all(&mut stream, deadline, authority)?;
+    parse_response(&raw).map_err(|e| format!("{authority} (GET {path}): {e}"))
+}
+
+/// The first address of `addrs` that accepts a connection.
+fn connect(authority: &str, addrs: &[SocketAddr], timeout: Duration) -> Result<TcpStream, String> {
+    let mut last = None;
+    for addr in addrs {
+        match TcpStream::connect_timeout(addr, timeout) {
+            Ok(s) => return Ok(s),
+            Err(e) => last = Some(e),
+        }
+    }
+    Err(match last {
+        Some(e) => format!(
+            "cannot connect to {authority}: {e} (is mavtables running with a stats block there?)"
+        ),
+        None => format!("cannot resolve {authority}: no address"),
+    })
+}
+
+/// Everything the server sends until it closes, the deadline passes or the size limit.
+fn read_all(stream: &mut TcpStream, deadline: Instant, authority: &str) -> Result<Vec<u8>, String> {
+    let mut raw = Vec::new();
+    let mut buf = [0u8; 16 * 1024];
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(format!("{authority} did not answer in time"));
+        }
+        let _ = stream.set_read_timeout(Some(left));
+        match stream.read(&mut buf) {
+            Ok(0) => return Ok(raw),
+            Ok(n) => {
+                raw.extend_from_slice(&buf[..n]);
+                if raw.len() > MAX_RESPONSE {
+                    return Err(format!(
+                        "{authority}: answer larger than {MAX_RESPONSE} bytes"
+                    ));
+                }
+                // A complete answer with a length ends the read without waiting for close.
+                if let Some(len) = complete_length(&raw)
+                    && raw.len() >= len
+                {
+                    raw.truncate(len);
+                    return Ok(raw);
+                }
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                return Err(format!("{authority} did not answer in time"));
+            }
+            Err(e) => return Err(format!("{authority}: reading the answer failed: {e}")),
+        }
+    }
+}
+
+/// The total length of an answer whose head is complete and names a `Content-Length`.
+fn complete_length(raw: &[u8]) -> Option<usize> {
+    let end = find(raw, b"\r\n\r\n")? + 4;
+    let head = std::str::from_utf8(&raw[..end]).ok()?;
+    let len = header(head, "content-length")?.parse::<usize>().ok()?;
+    end.checked_add(len)
+}
+
+/// The body of a complete answer, if its status is 200.
+pub fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
+    let Some(head_len) = find(raw, b"\r\n\r\n") else {
+        return Err(if raw.is_empty() {
+            "closed the connection without answering".into()
+        } else {
+            "not an HTTP answer".into()
+        });
+    };
+    let head = std::str::from_utf8(&raw[..head_len]).map_err(|_| "not an HTTP answer")?;
+    let status_line = head.lines().next().unwrap_or("");
+    let mut parts = status_line.splitn(3, ' ');
+    let (version, code) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
+    if !version.starts_with("HTTP/1.") || code.len() != 3 {
+        return Err("not an HTTP answer".into());
+    }
+    if code != "200" {
+        return Err(format!("answered {}", status_line.get(9..).unwrap_or(code)));
+    }
+    let body = &raw[head_len + 4..];
+    let chunked = header(head, "transfer-encoding")
+        .is_some_and(|v| v.to_ascii_lowercase().contains("chunked"));
+    if chunked {
+        return dechunk(body).ok_or_else(|| "malformed chunked answer".to_string());
+    }
+    match header(head, "content-length") {
+        Some(len) => {
+            let len: usize = len.parse().map_err(|_| "bad Content-Length")?;
+            body.get(..len)
+                .map(<[u8]>::to_vec)
+                .ok_or_else(|| "answer shorter than its Content-Length".to_string())
+        }
+        None => Ok(body.to_vec()),
+    }
+}
+
+/// The value of header `name` (lower case) in `head`.
+fn header<'a>(head: &'a str, name: &str) -> Option<&'a str> {
+    head.lines().skip(1).find_map(|line| {
+        let (key, value) = line.split_once(':')?;
+        key.trim().eq_ignore_ascii_case(name).then(|| value.trim())
+    })
+}
+
+/// The data of a chunked body, `None` if it is malformed or incomplete.
+fn dechunk(mut body: &[u8]) -> Option<Vec<u8>> {
+    let mut out = Vec::new();
+    loop {
+        let line_end = find(body, b"\r\n")?;
+        let size_text = std::str::from_utf8(&body[..line_end]).ok()?;
+        let size_text = size_text.split(';').next()?.trim();
+        let size = usize::from_str_radix(size_text, 16).ok()?;
+        body = &body[line_end + 2..];
+        if size == 0 {
+            return Some(out);
+        }
+        out.extend_from_slice(body.get(..size)?);
+        body = body.get(size..)?.strip_prefix(b"\r\n")?;
+    }
+}
+
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn answers_with_length_chunks_or_close() {
+        let ok =
+            b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\ncontent-length: 2\r\n\r\n{}junk";
+        assert_eq!(parse_response(ok), Ok(b"{}".to_vec()));
+        let chunked =
+            b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n3\r\n{\"a\r\n4;x=y\r\n\":1}\r\n0\r\n\r\n";
+        assert_eq!(parse_response(chunked), Ok(b"{\"a\":1}".to_vec()));
+        let closed = b"HTTP/1.0 200 OK\r\n\r\n[1]";
+        assert_eq!(parse_response(closed), Ok(b"[1]".to_vec()));
+        assert_eq!(complete_length(ok), Some(ok.len() - 4));
+    }
+
+    #[test]
+    fn bad_answers_are_one_line_errors() {
+        assert_eq!(
+            parse_response(b"HTTP/1.1 404 Not Found\r\n\r\n"),
+            Err("answered 404 Not Found".into())
+        );
+        assert_eq!(
+            parse_response(b""),
+            Err("closed the connection without answering".into())
+        );
+        assert_eq!(
+            parse_response(b"SSH-2.0-OpenSSH\r\n\r\n"),
+            Err("not an HTTP answer".into())
+        );
+        assert!(parse_response(b"HTTP/1.1 200 OK\r\nContent-Length: 9\r\n\r\n{}").is_err());
+        assert!(
+            parse_response(b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n").is_err()
+        );
+        assert!(
+            parse_response(
+                b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\nffffffffffffffff\r\n"
+            )
+            .is_err()
+        );
+    }
+
+    proptest::proptest! {
+        /// Whatever a server sends back, the answer is a body or an error, never a panic.
+        #[test]
+        fn any_bytes_are_an_answer_or_an_error(
+            head in proptest::sample::select(vec![
+                "HTTP/1.1 200 OK\r\nContent-Length: 5\r\n\r\n",
+                "HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n",
+                "HTTP/1.0 200 OK\r\n\r\n",
+                "",
+            ]),
+            tail in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200),
+        ) {
+            let mut raw = head.as_bytes().to_vec();
+            raw.extend(&tail);
+            let _ = parse_response(&raw);
+            let _ = complete_length(&raw);
+            let _ = dechunk(&tail);
+        }
+    }
+}
