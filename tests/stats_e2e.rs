@@ -511,3 +511,50 @@ fn the_documented_block_and_json_are_the_real_ones() {
         keys(&real["chains"][0]["rules"][0])
     );
 }
+
+/// A router that records shows its recorder's counters in `/stats` and `/metrics`: every
+/// frame it took in written, nothing dropped, the file it writes.
+#[test]
+fn the_recorder_counters_are_in_json_and_prometheus() {
+    let scratch = Scratch::new("stats-rec");
+    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
+    let dir = scratch.dir.join("flights");
+    let config = format!(
+        "udp {{ port {udp_port}; address 127.0.0.1; }}
+stats {{ port {http_port}; }}
+record {{ path {}/%Y%m%d-%H%M%S.tlog; min_free_bytes 0; }}
+default_action accept;
+",
+        dir.display()
+    );
+    let router = Router::start(&scratch, &config, 0);
+    let (vehicle, _) = peer();
+    let frames: Vec<Vec<u8>> = (0..25u8).map(|i| frame(ATTITUDE, 1, i, 7, 28)).collect();
+    for f in &frames {
+        vehicle.send_to(f, ("127.0.0.1", udp_port)).expect("send");
+    }
+    let s = stats_when(http_port, "25 frames recorded", |s| {
+        s["recording"]["written"].as_u64() == Some(25)
+    });
+    let r = &s["recording"];
+    let bytes: u64 = frames.iter().map(|f| 8 + f.len() as u64).sum();
+    assert_eq!(n(&r["bytes"]), bytes, "{r:#}");
+    assert_eq!(n(&r["files"]), 1);
+    for reason in ["dropped_queue_full", "dropped_disk", "dropped_no_space"] {
+        assert_eq!(n(&r[reason]), 0, "{reason}: {r:#}");
+    }
+    let path = r["current_path"].as_str().expect("the file being written");
+    assert!(path.starts_with(&dir.display().to_string()), "{path}");
+    let (code, metrics) = get(http_port, "/metrics");
+    assert_eq!(code, 200);
+    assert!(
+        metrics.contains("\nmavtables_recording_records_total 25\n"),
+        "{metrics}"
+    );
+    assert!(
+        metrics.contains(&format!("\nmavtables_recording_bytes_total {bytes}\n")),
+        "{metrics}"
+    );
+    assert!(metrics.contains("mavtables_recording_dropped_total{reason=\"disk\"} 0\n"));
+    drop(router);
+}

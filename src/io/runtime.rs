@@ -122,7 +122,9 @@ impl Runtime {
             return;
         }
         self.next_stats = now + STATS_INTERVAL;
-        server.publish(self.engine.stats(now));
+        let mut snapshot = self.engine.stats(now);
+        snapshot.recording = self.recorder_stats();
+        server.publish(snapshot);
     }
 
     /// Writes the signing state a last time, marked as written at a clean exit.

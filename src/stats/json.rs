@@ -5,6 +5,7 @@ use serde_json::{Map, Value, json};
 
 use super::history::HISTORY_LEN;
 use super::snapshot::{LinkStats, StatsSnapshot};
+use crate::recording::RecorderStats;
 
 /// The version of the JSON's shape.
 pub const VERSION: u64 = 1;
@@ -64,7 +65,7 @@ pub fn to_value(s: &StatsSnapshot) -> Value {
         "sequence_untracked": s.sequence_untracked,
         "queued_bytes": s.queued_bytes,
         "filter_cache": {"hits": s.filter_cache_hits, "misses": s.filter_cache_misses},
-        "recording": s.recording.clone().unwrap_or(Value::Null),
+        "recording": s.recording.as_ref().map_or(Value::Null, recording),
     })
 }
 
@@ -99,6 +100,20 @@ fn link(l: &LinkStats) -> Value {
 /// `snapshot` as JSON text.
 pub fn render(s: &StatsSnapshot) -> String {
     to_value(s).to_string()
+}
+
+/// The recorder's counters.
+fn recording(r: &RecorderStats) -> Value {
+    json!({
+        "written": r.written,
+        "bytes": r.bytes,
+        "dropped_queue_full": r.dropped_queue_full,
+        "dropped_disk": r.dropped_disk,
+        "dropped_no_space": r.dropped_no_space,
+        "files": r.files,
+        "removed": r.removed,
+        "current_path": r.current_path,
+    })
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@
 use std::fmt::Write;
 
 use super::snapshot::{LinkStats, StatsSnapshot};
+use crate::recording::RecorderStats;
 
 /// The content type of the text format.
 pub const CONTENT_TYPE: &str = "text/plain; version=0.0.4; charset=utf-8";
@@ -289,7 +290,48 @@ pub fn render(s: &StatsSnapshot) -> String {
         "Bytes all queues hold together.",
     );
     o.sample("mavtables_queued_bytes", &[], s.queued_bytes);
+    if let Some(r) = &s.recording {
+        recording(&mut o, r);
+    }
     o.0
+}
+
+/// The recorder's families (only when the router records).
+fn recording(o: &mut Out, r: &RecorderStats) {
+    o.family(
+        "mavtables_recording_records_total",
+        "counter",
+        "Frames written to recordings.",
+    );
+    o.sample("mavtables_recording_records_total", &[], r.written);
+    o.family(
+        "mavtables_recording_bytes_total",
+        "counter",
+        "Bytes written to recordings, timestamps included.",
+    );
+    o.sample("mavtables_recording_bytes_total", &[], r.bytes);
+    o.family(
+        "mavtables_recording_dropped_total",
+        "counter",
+        "Records dropped (never packets), by reason.",
+    );
+    for (reason, n) in [
+        ("queue_full", r.dropped_queue_full),
+        ("disk", r.dropped_disk),
+        ("no_space", r.dropped_no_space),
+    ] {
+        o.sample(
+            "mavtables_recording_dropped_total",
+            &[("reason", reason)],
+            n,
+        );
+    }
+    o.family(
+        "mavtables_recording_files_total",
+        "counter",
+        "Recording files opened (one at start, one per rotation).",
+    );
+    o.sample("mavtables_recording_files_total", &[], r.files);
 }
 
 #[cfg(test)]

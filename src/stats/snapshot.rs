@@ -2,6 +2,8 @@
 //! second and of the last minutes, in plain values that the renderers turn into JSON or
 //! Prometheus text.
 
+use crate::recording::RecorderStats;
+
 /// Every counter of the router at one instant.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct StatsSnapshot {
@@ -30,8 +32,9 @@ pub struct StatsSnapshot {
     pub filter_cache_hits: u64,
     /// Lookups that walked the rules.
     pub filter_cache_misses: u64,
-    /// What the recorder reports, once there is one (`null` in JSON until then).
-    pub recording: Option<serde_json::Value>,
+    /// What the recorder did, when the router records (the I/O layer fills it in: the
+    /// recorder is a thread of its own).
+    pub recording: Option<RecorderStats>,
 }
 
 /// Frames dropped, by reason. A link's receive-side reasons (`no_route`, `bad_crc`,
