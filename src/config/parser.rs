@@ -369,30 +369,15 @@ impl<'a> Parser<'a> {
         Ok(YesNo { keyword, span, yes })
     }
 
-    /// A statement of a `stats` block: `address IP;`, `port N;` or `allow RANGE;` (read
-    /// as in a `udp` block).
+    /// A statement of a `stats` block: `address IP;`, `port N;` or `allow RANGE;`, read
+    /// as in a `udp` block; the others of that block are not statements here.
     fn stats_setting(&mut self) -> Result<SocketSetting> {
-        let (span, word) = match self.c.peek_word() {
-            Some(found) => found,
-            None => return Err(self.stray("a statement or '}'")),
-        };
-        let setting = match word {
-            "port" => {
-                self.c.word();
-                SocketSetting::Port(self.number("expected a valid port number")?)
+        match self.c.peek_word() {
+            Some((span, word)) if !STATS_STATEMENTS.contains(&word) => {
+                Err(unsupported(span, word, STATS_STATEMENTS))
             }
-            "address" => {
-                self.c.word();
-                SocketSetting::Address(self.ip()?)
-            }
-            "allow" => {
-                self.c.word();
-                self.allow()?
-            }
-            _ => return Err(unsupported(span, word, STATS_STATEMENTS)),
-        };
-        self.semicolon(false)?;
-        Ok(setting)
+            _ => self.socket_setting(),
+        }
     }
 
     fn queue_setting(&mut self) -> Result<QueueSetting> {

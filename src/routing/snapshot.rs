@@ -11,7 +11,6 @@ use super::router::Router;
 use super::time::Timestamp;
 use crate::config::{Config, DefaultAction};
 use crate::dialect;
-use crate::signing::SigningCounters;
 use crate::stats::rule_text::rule_text;
 use crate::stats::{
     ChainStats, DefaultActionStats, Drops, History, InterfaceStats, LinkStats, RuleStats,
@@ -103,7 +102,7 @@ pub fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         e.refused_max_peers += i.refused.full;
         if let Some(edge) = &i.signing {
             let g = e.signing.get_or_insert_with(SigningStats::default);
-            add_signing(g, &edge.counters);
+            *g += edge.counters;
         }
         match &i.kind {
             Kind::Datagram { remotes, .. } => {
@@ -218,13 +217,4 @@ pub fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         filter_cache_misses: cache.misses,
         recording: None,
     }
-}
-
-fn add_signing(g: &mut SigningStats, c: &SigningCounters) {
-    g.verified += c.verified;
-    g.bad_signature += c.bad_signature;
-    g.replayed += c.replayed;
-    g.out_of_window += c.out_of_window;
-    g.unsigned += c.unsigned;
-    g.signed_out += c.signed_out;
 }

@@ -121,22 +121,8 @@ pub struct LinkStats {
     pub history_out_fps: Vec<f64>,
 }
 
-/// What signing did on one interface.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct SigningStats {
-    /// Signed frames whose signature checked.
-    pub verified: u64,
-    /// Refused: bad signature.
-    pub bad_signature: u64,
-    /// Refused: replayed timestamp.
-    pub replayed: u64,
-    /// Refused: a new stream's timestamp too far from the router's clock.
-    pub out_of_window: u64,
-    /// Refused: unsigned where signing is required.
-    pub unsigned: u64,
-    /// Frames the router signed on their way out.
-    pub signed_out: u64,
-}
+/// What signing did on one interface: the routing core's own counters.
+pub type SigningStats = crate::signing::SigningCounters;
 
 /// One configured interface: what its parser saw.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
