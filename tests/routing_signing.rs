@@ -372,3 +372,24 @@ fn rules_match_frames_the_router_verified() {
     r.e.handle_datagram(r.open, peer(2), &theirs, Timestamp::ZERO);
     assert!(r.sent(r.keyed).is_empty(), "signed, but not verified here");
 }
+
+#[test]
+fn only_frames_that_pass_the_check_are_recorded() {
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    r.e.set_recording(mavtables::recording::RecordFilter::new(Vec::new()));
+    let good = signed("ATTITUDE", "1.1", r.next());
+    let mut forged = signed("ATTITUDE", "1.1", r.next());
+    let last = forged.len() - 1;
+    forged[last] ^= 1;
+    let unsigned = frame("ATTITUDE", "1.1", None);
+    for bytes in [&forged, &good, &good, &unsigned] {
+        r.through(bytes);
+    }
+    let mut recorded = Vec::new();
+    r.e.poll_recorded(&mut |_, bytes| recorded.push(bytes.to_vec()));
+    assert_eq!(
+        recorded,
+        [good],
+        "the forgery, the replay and the unsigned frame are not flight data"
+    );
+}
