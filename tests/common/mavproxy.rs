@@ -124,29 +124,35 @@ pub fn python_with_mavproxy() -> PathBuf {
     py
 }
 
+/// `mavproxy.py --master=MASTER EXTRA…` with its state (logs, parameter files) and its
+/// home directory (so no `~/.mavinit.scr` or signing keys of the user's) inside `scratch`.
+pub fn mavproxy_command(scratch: &Scratch, master: &str, extra: &[&str]) -> Command {
+    let home = scratch.dir.join("mavproxy-home");
+    let state = scratch.dir.join("mavproxy-state");
+    for dir in [&home, &state] {
+        std::fs::create_dir_all(dir).expect("mavproxy dirs");
+    }
+    let mut cmd = Command::new(python_with_mavproxy());
+    cmd.args(["-m", "MAVProxy.mavproxy"])
+        .arg(format!("--master={master}"))
+        .arg(format!("--state-basedir={}", state.display()))
+        .args(extra)
+        .current_dir(&scratch.dir)
+        .env("HOME", &home)
+        .env("PYTHONUNBUFFERED", "1")
+        .env_remove("DISPLAY");
+    cmd
+}
+
 /// A running MAVProxy, driven through its command line on stdin.
 pub struct MavProxy {
     proc: Proc,
 }
 
 impl MavProxy {
-    /// Starts `mavproxy.py --master=MASTER` with its state (logs, parameter files) and its
-    /// home directory (so no `~/.mavinit.scr` or signing keys of the user's) inside
-    /// `scratch`, and waits until its master link is open.
+    /// Starts [`mavproxy_command`] and waits until its master link is open.
     pub fn start(scratch: &Scratch, master: &str) -> MavProxy {
-        let home = scratch.dir.join("mavproxy-home");
-        let state = scratch.dir.join("mavproxy-state");
-        for dir in [&home, &state] {
-            std::fs::create_dir_all(dir).expect("mavproxy dirs");
-        }
-        let mut cmd = Command::new(python_with_mavproxy());
-        cmd.args(["-m", "MAVProxy.mavproxy"])
-            .arg(format!("--master={master}"))
-            .arg(format!("--state-basedir={}", state.display()))
-            .current_dir(&scratch.dir)
-            .env("HOME", &home)
-            .env("PYTHONUNBUFFERED", "1")
-            .env_remove("DISPLAY");
+        let cmd = mavproxy_command(scratch, master, &[]);
         let mut gcs = MavProxy {
             proc: Proc::spawn(cmd, &format!("mavproxy --master={master}")),
         };

@@ -15,7 +15,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2};
 use sha2::{Digest, Sha256};
 
-use crate::common::mavproxy::python_with_mavproxy;
+use crate::common::mavproxy::mavproxy_command;
 use crate::common::process::Proc;
 use crate::common::python;
 use crate::common::router::Scratch;
@@ -314,20 +314,7 @@ pub fn parse_stats(line: &str) -> [u64; 5] {
 /// MAVProxy with `--master=MASTER` and `extra` options, its home and state inside
 /// `scratch` (no user keys or scripts); returns once its master link is open.
 pub fn mavproxy(scratch: &Scratch, master: &str, extra: &[&str]) -> Py {
-    let home = scratch.dir.join("mavproxy-home");
-    let state = scratch.dir.join("mavproxy-state");
-    for dir in [&home, &state] {
-        std::fs::create_dir_all(dir).expect("mavproxy dirs");
-    }
-    let mut cmd = Command::new(python_with_mavproxy());
-    cmd.args(["-m", "MAVProxy.mavproxy"])
-        .arg(format!("--master={master}"))
-        .arg(format!("--state-basedir={}", state.display()))
-        .args(extra)
-        .current_dir(&scratch.dir)
-        .env("HOME", &home)
-        .env("PYTHONUNBUFFERED", "1")
-        .env_remove("DISPLAY");
+    let cmd = mavproxy_command(scratch, master, extra);
     let mut p = Py::spawn(cmd, &format!("mavproxy --master={master}"));
     p.wait_for("Log Directory:", Duration::from_secs(30));
     p
