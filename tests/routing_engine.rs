@@ -219,6 +219,46 @@ fn held_back_bytes_on_a_serial_line_wait_one_frame_time_more() {
     assert_eq!(learned(&mut e)[0], "new component 7.1 on /dev/ttyX");
 }
 
+/// TCP loses nothing, so bytes held back for a frame wait as long as the connection
+/// lasts: a frame whose second half comes 3 s after its first (a retransmission, a
+/// cellular stall) arrives whole, on a TCP client and on an accepted connection alike.
+#[test]
+fn held_back_bytes_on_tcp_wait_for_the_rest_of_their_frame() {
+    let mut e = engine(ACCEPT);
+    let server = e.add_listener("tcp 127.0.0.1:5760".into(), limits(8, &[]));
+    let accepted = e
+        .accept(server, peer(40000), 0, Timestamp::ZERO)
+        .expect("accepted");
+    let client = e.add_stream_client("tcp 127.0.0.1:5761".into(), "tcp:x", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    e.stream_opened(client, Timestamp::ZERO);
+    notices(&mut e);
+    for (ifc, sys) in [(accepted, "7.1"), (client, "8.1")] {
+        let hb = frame("HEARTBEAT", sys, None);
+        let t0 = Timestamp::from_secs(1);
+        e.handle_timeout(t0);
+        let before = e.poll_timeout();
+        e.handle_stream(ifc, &hb[..5], t0);
+        assert_eq!(
+            e.poll_timeout(),
+            before,
+            "no deadline for held-back TCP bytes"
+        );
+        e.handle_timeout(t0 + Duration::from_secs(3));
+        assert!(
+            learned(&mut e).is_empty(),
+            "nothing judged while the rest is due"
+        );
+        e.handle_stream(ifc, &hb[5..], t0 + Duration::from_secs(3));
+        let got = learned(&mut e);
+        assert!(
+            got.first()
+                .is_some_and(|l| l.starts_with(&format!("new component {sys} on tcp"))),
+            "{got:?}"
+        );
+    }
+}
+
 #[test]
 fn a_silent_datagram_peer_is_removed_after_twice_the_expiry() {
     let mut e = engine(ACCEPT);

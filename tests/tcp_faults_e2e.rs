@@ -549,3 +549,54 @@ fn a_thousand_short_connections_leave_nothing_behind() {
     assert_eq!(server.frames, (CYCLES + WARM_UP) as u64, "{}", c.text);
     router.stop();
 }
+
+/// 8. TCP loses nothing, so a frame whose pieces arrive 0.05, 0.5 and 3 s apart (a
+///    retransmission, a cellular stall) is the start of the next frame until its last
+///    byte comes: it reaches the other side once and intact — from a connection the
+///    router accepted, and from the server its `tcp { connect }` client reached — and
+///    not one byte of it is counted as junk.
+#[test]
+fn a_frame_in_pieces_with_long_pauses_arrives_whole_over_tcp() {
+    let s = Scratch::new("tcp-pauses");
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let upstream = listener.local_addr().expect("addr").to_string();
+    let client_config = format!("tcp {{ connect {upstream}; }}\n");
+    let (mut router, to) = tcp_server(&s, &client_config);
+    let (mut far, _) = listener.accept().expect("the router's client connects");
+    far.write_all(&heartbeat(30)).expect("write");
+    router.wait_for(&format!("new component 30.1 on tcp:{upstream}"));
+    let mut b = join(&mut router, &to, 20);
+    let a = join(&mut router, &to, 10);
+    let a_name = link_name(&a);
+    let pieces = |mut w: TcpStream, frame: Vec<u8>| {
+        thread::spawn(move || {
+            let cuts = [0, 3, 11, 25, frame.len()];
+            let pauses = [0.05, 0.5, 3.0];
+            for (i, piece) in cuts.windows(2).enumerate() {
+                w.write_all(&frame[piece[0]..piece[1]]).expect("write");
+                if let Some(p) = pauses.get(i) {
+                    thread::sleep(Duration::from_secs_f64(*p));
+                }
+            }
+            w
+        })
+    };
+    let from_a = pieces(a, attitude(10, 1));
+    let from_far = pieces(far, attitude(30, 2));
+    // A's heartbeat, then the two frames.
+    let mut got = tcp_frames(&mut b, 3, 15 * SECOND);
+    got.retain(|f| f[7] != 0); // the heartbeat aside
+    got.sort();
+    let mut want = vec![attitude(10, 1), attitude(30, 2)];
+    want.sort();
+    assert_eq!(got, want, "each frame once, intact");
+    // Nothing was left behind or doubled: the next frame is the next thing B gets.
+    let mut a = from_a.join().expect("writer");
+    let _far = from_far.join().expect("writer");
+    a.write_all(&attitude(10, 3)).expect("write");
+    assert_eq!(tcp_frames(&mut b, 1, 5 * SECOND), [attitude(10, 3)]);
+    let c = counters(&mut router);
+    let line = c.interface(&a_name).expect("a's interface");
+    assert_eq!((line.frames, line.junk_bytes), (3, 0), "{}", c.text);
+    router.stop();
+}

@@ -242,7 +242,7 @@ impl Engine {
         now: Timestamp,
     ) -> InterfaceId {
         let link = self.router.add_client_link(link_name, now);
-        self.push_interface(Interface::network(
+        self.push_interface(Interface::reliable_stream(
             label,
             max_bitrate,
             Kind::stream(
@@ -257,7 +257,7 @@ impl Engine {
     /// Adds a stream server (a TCP listener) named `label`, taking connections within
     /// `limits` ([`Engine::accept`]); each sends at most `max_bitrate` bit/s.
     pub fn add_listener(&mut self, label: String, limits: PeerLimits) -> InterfaceId {
-        self.push_interface(Interface::network(
+        self.push_interface(Interface::reliable_stream(
             label,
             0,
             Kind::Listener {
@@ -300,7 +300,7 @@ impl Engine {
             id: link,
             name: name.clone(),
         });
-        let mut connection = Interface::network(
+        let mut connection = Interface::reliable_stream(
             name,
             max_bitrate,
             Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),

@@ -193,10 +193,17 @@ impl Interface {
         }
     }
 
-    /// A network interface (no line rate: held-back bytes wait the plain quiet gap)
-    /// named `label` in messages and counters alike.
+    /// A datagram network interface (no line rate: held-back bytes wait the plain quiet
+    /// gap) named `label` in messages and counters alike.
     pub fn network(label: String, rate: u64, kind: Kind) -> Self {
         Interface::new(label.clone(), label, StaleTail::new(None), rate, kind)
+    }
+
+    /// A TCP interface (a client, a server or one of its connections) named `label`:
+    /// its held-back bytes wait for the rest of their frame as long as the connection
+    /// lasts.
+    pub fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
+        Interface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
     }
 
     /// The connection state of an interface that opens (streams, datagram clients).

@@ -13,8 +13,9 @@
 //! in [`ParserStats::longer_than_known`]; [`Checks::STRICT`] rejects it instead. The cost
 //! of this: a corrupt length byte on a known id is no longer rejected at the header, so
 //! the parser may hold up to one longest frame (280 bytes) before the checksum rejects
-//! the candidate and it rescans the bytes behind its start. On a stream that goes quiet
-//! meanwhile, [`Parser::finish`] (called by the I/O layer for a stale tail) releases them.
+//! the candidate and it rescans the bytes behind its start. On a serial line or UDP
+//! sender that goes quiet meanwhile, [`Parser::finish`] (called by the routing core for a
+//! stale tail) releases them; on TCP they wait for the rest of their frame.
 
 use std::fmt;
 use std::ops::AddAssign;
