@@ -558,3 +558,58 @@ default_action accept;
     assert!(metrics.contains("mavtables_recording_dropped_total{reason=\"disk\"} 0\n"));
     drop(router);
 }
+
+/// What the endpoint on `port` answers to the raw request `text`, whole.
+fn raw(port: u16, text: &str) -> String {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect to the endpoint");
+    s.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+    s.write_all(text.as_bytes()).expect("request");
+    let mut answer = Vec::new();
+    s.read_to_end(&mut answer).expect("answer");
+    String::from_utf8(answer).expect("utf-8 answer")
+}
+
+/// HTTP as RFC 9110 and 9112 have it, in raw requests: `HEAD` gets `GET`'s status and
+/// headers (its Content-Length too) and no body; the absolute form `GET
+/// http://HOST:PORT/stats` is the same request as `GET /stats`; a method the endpoint
+/// does not serve gets 405 naming the ones it does.
+#[test]
+fn head_and_the_absolute_form_are_understood() {
+    let scratch = Scratch::new("stats-http");
+    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
+    let config = format!(
+        "udp {{ port {udp_port}; address 127.0.0.1; }}\nstats {{ port {http_port}; }}\ndefault_action accept;\n"
+    );
+    let router = Router::start(&scratch, &config, 0);
+    stats(http_port); // listening
+    for path in ["/stats", "/metrics", "/"] {
+        let head = raw(
+            http_port,
+            &format!("HEAD {path} HTTP/1.1\r\nHost: x\r\n\r\n"),
+        );
+        let (status, rest) = head.split_once("\r\n").expect("a status line");
+        assert_eq!(status, "HTTP/1.1 200 OK", "HEAD {path}");
+        assert!(rest.ends_with("\r\n\r\n"), "HEAD {path}: no body: {head:?}");
+        let length: usize = rest
+            .lines()
+            .find_map(|l| l.strip_prefix("Content-Length: "))
+            .and_then(|n| n.parse().ok())
+            .expect("Content-Length");
+        assert!(length > 0, "HEAD {path}: the length GET's body would have");
+    }
+    let absolute = raw(
+        http_port,
+        &format!("GET http://127.0.0.1:{http_port}/stats HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"),
+    );
+    assert!(absolute.starts_with("HTTP/1.1 200 OK\r\n"), "{absolute}");
+    let body = absolute.split_once("\r\n\r\n").expect("a body").1;
+    let json: Value = serde_json::from_str(body).expect("/stats is JSON");
+    assert!(json["links"].is_array(), "{json}");
+    let post = raw(
+        http_port,
+        "POST /stats HTTP/1.1\r\nContent-Length: 0\r\n\r\n",
+    );
+    assert!(post.starts_with("HTTP/1.1 405 "), "{post}");
+    assert!(post.contains("\r\nAllow: GET, HEAD\r\n"), "{post}");
+    drop(router);
+}

@@ -1,6 +1,7 @@
 //! The statistics endpoint: a small HTTP/1.1 server on threads of its own that answers
 //! `GET /metrics` (Prometheus text), `GET /stats` (JSON) and `GET /` (the status page)
-//! from the latest snapshot the event loop published.
+//! from the latest snapshot the event loop published; `HEAD` gets the same headers without
+//! the body, and the absolute request form (`GET http://HOST:PORT/stats`) is understood.
 //!
 //! It never touches the event loop: the loop publishes a snapshot about once a second
 //! (one `Arc` swapped under a mutex held for nothing else), and requests are read,
@@ -159,12 +160,14 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
             return answer(400, "text/plain; charset=utf-8", b"bad request\n");
         }
     }
-    if request.method != Some("GET") {
-        return answer(405, "text/plain; charset=utf-8", b"only GET\n");
-    }
-    let path = request.path.unwrap_or("/");
+    let bodyless = match request.method {
+        Some("GET") => false,
+        Some("HEAD") => true,
+        _ => return answer(405, "text/plain; charset=utf-8", b"only GET and HEAD\n"),
+    };
+    let path = origin_path(request.path.unwrap_or("/"));
     let path = path.split(['?', '#']).next().unwrap_or(path);
-    match path {
+    let mut out = match path {
         "/metrics" => answer(
             200,
             stats::prometheus::CONTENT_TYPE,
@@ -181,6 +184,31 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
             stats::STATUS_PAGE.as_bytes(),
         ),
         _ => answer(404, "text/plain; charset=utf-8", b"not found\n"),
+    };
+    if bodyless {
+        // HEAD: the same status and headers (Content-Length included), no body.
+        let end = out
+            .windows(4)
+            .position(|w| w == b"\r\n\r\n")
+            .map_or(out.len(), |i| i + 4);
+        out.truncate(end);
+    }
+    out
+}
+
+/// The path of a request target: the target itself in origin form (`/stats`), the part
+/// after the authority in absolute form (`http://127.0.0.1:9100/stats`, which servers
+/// must accept: RFC 9112 §3.2.2), `/` when that part is empty.
+fn origin_path(target: &str) -> &str {
+    let Some((scheme, rest)) = target.split_once("://") else {
+        return target;
+    };
+    if !scheme.eq_ignore_ascii_case("http") && !scheme.eq_ignore_ascii_case("https") {
+        return target;
+    }
+    match rest.find(['/', '?']) {
+        Some(i) if rest[i..].starts_with('/') => &rest[i..],
+        _ => "/",
     }
 }
 
@@ -193,7 +221,11 @@ fn answer(status: u16, content_type: &str, body: &[u8]) -> Vec<u8> {
         431 => "Request Header Fields Too Large",
         _ => "Error",
     };
-    let allow = if status == 405 { "Allow: GET\r\n" } else { "" };
+    let allow = if status == 405 {
+        "Allow: GET, HEAD\r\n"
+    } else {
+        ""
+    };
     let mut out = format!(
         "HTTP/1.1 {status} {reason}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-store\r\n{allow}Connection: close\r\n\r\n",
         body.len()
@@ -243,7 +275,38 @@ mod tests {
             status(b"\x00\xff garbage\r\n\r\n"),
             "HTTP/1.1 400 Bad Request"
         );
+        assert_eq!(
+            status(b"GET http://127.0.0.1:9100/stats HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"),
+            "HTTP/1.1 200 OK"
+        );
+        assert_eq!(
+            status(b"GET HTTP://localhost?x HTTP/1.1\r\n\r\n"),
+            "HTTP/1.1 200 OK"
+        );
+        assert_eq!(
+            status(b"GET http://127.0.0.1:9100/nope HTTP/1.1\r\n\r\n"),
+            "HTTP/1.1 404 Not Found"
+        );
         let big = vec![b'a'; MAX_HEAD + 1];
         assert_eq!(status(&big), "HTTP/1.1 431 Request Header Fields Too Large");
+    }
+
+    #[test]
+    fn head_answers_like_get_without_a_body() {
+        let snapshot = StatsSnapshot::default();
+        for path in ["/stats", "/metrics", "/", "/nope"] {
+            let get = respond(format!("GET {path} HTTP/1.1\r\n\r\n").as_bytes(), &snapshot);
+            let head = respond(
+                format!("HEAD {path} HTTP/1.1\r\n\r\n").as_bytes(),
+                &snapshot,
+            );
+            let end = get
+                .windows(4)
+                .position(|w| w == b"\r\n\r\n")
+                .expect("a head")
+                + 4;
+            assert!(get.len() > end, "{path}: GET has a body");
+            assert_eq!(head, get[..end], "{path}");
+        }
     }
 }
