@@ -82,7 +82,7 @@ fn help_and_version() {
 #[test]
 fn option_errors_exit_1_with_the_original_texts() {
     let dir = scratch("opterr");
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--foo"], "error: unrecognised option '--foo'\n"),
         (
             &["--loglevel", "abc"],
@@ -91,6 +91,14 @@ fn option_errors_exit_1_with_the_original_texts() {
         (
             &["--config"],
             "error: the required argument for option '--config' is missing\n",
+        ),
+        (
+            &["--loglevel", "99"],
+            "error: the argument ('99') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet)\n",
+        ),
+        (
+            &["--loglevel", "-1"],
+            "error: the argument ('-1') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet)\n",
         ),
         (
             &["--config", "a", "--conf=b"],
@@ -305,7 +313,7 @@ fn config_search_order() {
 fn running_loads_and_validates_first() {
     let dir = scratch("run");
     std::fs::write(dir.join("bad.conf"), "udp { port 65536; }\n").expect("write");
-    let out = run_in(&dir, &["--config", "bad.conf", "--loglevel", "9"], &[]);
+    let out = run_in(&dir, &["--config", "bad.conf", "--loglevel", "3"], &[]);
     assert_eq!(out.status.code(), Some(1));
     assert!(text(&out.stderr).starts_with("bad.conf:1:12: port number (65536) is outside"));
 }

@@ -62,7 +62,10 @@ fn stray_text() {
     );
     check("udp { ; }", "1:7: expected a statement or '}', found ';'");
     check("chain a { ; }", "1:11: expected a valid rule");
-    check("udp {} é", "1:8: expected a statement or block, found 'é'");
+    check(
+        "udp {} é",
+        "1:8: the character 'é' (U+00E9) is not part of the language: outside comments it is written in ASCII",
+    );
 }
 
 #[test]
@@ -424,4 +427,61 @@ fn queue_block() {
     assert!(
         all("udp { total_bytes 4096; }").contains("note: 'total_bytes' belongs in a 'queue' block")
     );
+}
+
+/// A character the language never uses is named, wherever it stops the parser: in a name
+/// (`dëfault` is not the name `d` followed by a missing brace), in a keyword, after a
+/// subnet, and an ASCII control character alike; what was expected follows as a note.
+#[test]
+fn a_stray_character_is_named() {
+    let name = "the character 'ë' (U+00EB) cannot be part of a name: names are ASCII letters, digits and '_'";
+    assert_eq!(
+        all("chain dëfault {\n    accept;\n}\n"),
+        format!("f:1:8: {name}\nchain dëfault {{\n       ^\nnote: expected opening brace '{{'\n")
+    );
+    check(
+        "udp { pört 14500; }",
+        &format!("1:8: {}", name.replace("'ë' (U+00EB)", "'ö' (U+00F6)")),
+    );
+    check(
+        "chain default {\n    accept if HEARTBËAT;\n}",
+        "2:21: the character 'Ë' (U+00CB) cannot be part of a name: names are ASCII letters, digits and '_'",
+    );
+    check(
+        "chain default {\n    accept if HEARTBEAT from 1.ë;\n}",
+        "2:32: the character 'ë' (U+00EB) is not part of the language: outside comments it is written in ASCII",
+    );
+    check(
+        "default_action \u{1}accept;",
+        "1:16: the character '\\u{1}' (U+0001) is not part of the language: outside comments it is written in ASCII",
+    );
+    // Comments may hold anything.
+    assert!(config::load("# dëfault\ndefault_action accept;\n").is_ok());
+}
+
+/// A rule naming a message of a million characters gets its error at once (the "did you
+/// mean" search only looks at names of about its length, and none is that long), and the
+/// rendered error stays a few lines of at most a few hundred characters.
+#[test]
+fn a_huge_name_gets_a_short_error_at_once() {
+    let src = format!(
+        "chain default {{\n    accept if {};\n}}\n",
+        "X".repeat(1_000_000)
+    );
+    let started = std::time::Instant::now();
+    let text = all(&src);
+    let took = started.elapsed();
+    assert!(took < std::time::Duration::from_secs(1), "took {took:?}");
+    assert!(
+        text.starts_with("f:2:15: Invalid packet name (\"XXX"),
+        "{text:.300}"
+    );
+    assert!(text.len() < 1_000, "{} bytes", text.len());
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 3, "{text}");
+    assert!(lines[1].starts_with("    accept if XXX") && lines[1].ends_with('…'));
+    assert!(lines[2].starts_with("              ^^^"), "{text}");
+    // Near misses of ordinary length still get their suggestion.
+    let near = all("chain default {\n    accept if HEARTBEET;\n}\n");
+    assert!(near.contains("did you mean 'HEARTBEAT'?"), "{near}");
 }

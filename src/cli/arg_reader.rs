@@ -151,9 +151,10 @@ impl<I: Iterator<Item = String>> ArgReader<I> {
     }
 }
 
-/// `-x`, `--x`: an option, not a value (a lone `-` is a value: standard input by custom).
+/// `-x`, `--x`: an option, not a value (a lone `-` is a value: standard input by custom;
+/// so is a negative number such as `-1`, which no option's name starts like).
 fn looks_like_option(arg: &str) -> bool {
-    arg.starts_with('-') && arg.len() > 1
+    arg.len() > 1 && arg.starts_with('-') && !arg[1..].starts_with(|c: char| c.is_ascii_digit())
 }
 
 #[cfg(test)]

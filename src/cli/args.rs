@@ -19,7 +19,7 @@ pub struct Options {
     pub check: bool,
     /// Path given with `--config`.
     pub config: Option<String>,
-    /// Log level 0..=3 given with `--loglevel` (larger values are clamped to 3).
+    /// Log level 0..=3 given with `--loglevel` (any other number is an error).
     pub loglevel: u8,
     /// Endpoints given as positional arguments, in order: when there are any, they are
     /// the configuration.
@@ -70,14 +70,29 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, String>
                     return Err("option '--loglevel' cannot be specified more than once".into());
                 }
                 loglevel_seen = true;
-                opts.loglevel = v.parse::<u64>().map(|n| n.min(3) as u8).map_err(|_| {
-                    format!("the argument ('{v}') for option '--loglevel' is invalid")
-                })?;
+                opts.loglevel = loglevel(&v)?;
             }
             _ => {}
         }
     }
     Ok(opts)
+}
+
+/// The log level `text` names: a whole number from 0 to 3. (The original took larger
+/// numbers as 3; a typo such as `--loglevel 22` is now said instead of logging every
+/// packet.)
+fn loglevel(text: &str) -> Result<u8, String> {
+    let invalid = format!("the argument ('{text}') for option '--loglevel' is invalid");
+    let digits = text.strip_prefix('-').unwrap_or(text);
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(invalid);
+    }
+    match text.parse::<u8>() {
+        Ok(n) if n <= 3 => Ok(n),
+        _ => Err(format!(
+            "{invalid}: the log level is a number from 0 (nothing) to 3 (every packet)"
+        )),
+    }
 }
 
 #[cfg(test)]
@@ -90,9 +105,9 @@ mod tests {
 
     #[test]
     fn values_prefixes_and_flags() {
-        let o = p(&["--conf", "a.conf", "--log=7", "--ast", "ignored"]).unwrap();
+        let o = p(&["--conf", "a.conf", "--log=2", "--ast", "ignored"]).unwrap();
         assert_eq!(o.config.as_deref(), Some("a.conf"));
-        assert_eq!(o.loglevel, 3);
+        assert_eq!(o.loglevel, 2);
         assert!(o.ast && !o.check && !o.help);
         assert_eq!(p(&["--c", "x"]).unwrap().config.as_deref(), Some("x"));
         assert!(p(&["--ch"]).unwrap().check);
@@ -135,6 +150,16 @@ mod tests {
             p(&["--loglevel", "abc"]).unwrap_err(),
             "the argument ('abc') for option '--loglevel' is invalid"
         );
+        for out_of_range in ["4", "99", "-1", "300", "99999999999999999999"] {
+            let e = p(&["--loglevel", out_of_range]).unwrap_err();
+            assert!(
+                e.ends_with("the log level is a number from 0 (nothing) to 3 (every packet)"),
+                "{out_of_range}: {e}"
+            );
+            assert!(e.contains(&format!("('{out_of_range}')")), "{e}");
+        }
+        assert_eq!(p(&["--loglevel", "0"]).unwrap().loglevel, 0);
+        assert_eq!(p(&["--loglevel=3"]).unwrap().loglevel, 3);
         assert_eq!(
             p(&["--conf"]).unwrap_err(),
             "the required argument for option '--config' is missing"

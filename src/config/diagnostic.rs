@@ -32,33 +32,89 @@ impl Diagnostic {
         self
     }
 
-    /// Renders the diagnostic against the source it was found in.
+    /// Renders the diagnostic against the source it was found in. A line longer than
+    /// [`SHOWN_CHARS`] is shown as a window around the position (`…` where it was cut),
+    /// and a message or note that long is cut too, so a pathological file gets a short
+    /// error.
     pub fn render(&self, file: &str, src: &str) -> String {
         let pos = Position::of(src, self.span.start);
         let line_text = pos.line_text(src);
-        let mut out = format!("{file}:{}:{}: {}\n", pos.line, pos.column, self.message);
-        out.push_str(line_text);
+        let mut at = pos.byte_in_line.min(line_text.len());
+        while !line_text.is_char_boundary(at) {
+            at -= 1;
+        }
+        let (shown, at_in_shown) = window(line_text, at);
+        let message = shorten(&self.message);
+        let mut out = format!("{file}:{}:{}: {message}\n", pos.line, pos.column);
+        out.push_str(&shown);
         out.push('\n');
         // The caret line copies tabs so the caret lines up however tabs are displayed.
-        let before = &line_text[..pos.byte_in_line.min(line_text.len())];
+        let before = &shown[..at_in_shown];
         for c in before.chars() {
             out.push(if c == '\t' { '\t' } else { ' ' });
         }
-        let rest = &line_text[before.len()..];
+        let rest = shown[at_in_shown..].trim_end_matches(ELLIPSIS);
         let width = self
             .span
             .end
             .saturating_sub(self.span.start)
             .min(rest.len());
-        let carets = rest.get(..width).map_or(0, |s| s.chars().count()).max(1);
+        let carets = rest
+            .get(..width)
+            .map_or(rest.chars().count(), |s| s.chars().count())
+            .max(1);
         out.push_str(&"^".repeat(carets));
         out.push('\n');
         for note in &self.notes {
             out.push_str("note: ");
-            out.push_str(note);
+            out.push_str(&shorten(note));
             out.push('\n');
         }
         out
+    }
+}
+
+/// Longest source line, message or note shown whole, in characters.
+pub const SHOWN_CHARS: usize = 160;
+
+/// Characters of a long line shown before the position.
+const SHOWN_BEFORE: usize = 60;
+
+const ELLIPSIS: char = '…';
+
+/// `line` as shown, and the byte offset of `at` in that: the line itself when it is at
+/// most [`SHOWN_CHARS`] long, else [`SHOWN_CHARS`] characters around `at` with `…`
+/// where it was cut.
+fn window(line: &str, at: usize) -> (String, usize) {
+    if line.chars().count() <= SHOWN_CHARS {
+        return (line.to_string(), at);
+    }
+    let start = line[..at]
+        .char_indices()
+        .rev()
+        .nth(SHOWN_BEFORE.saturating_sub(1))
+        .map_or(0, |(i, _)| i);
+    let end = line[start..]
+        .char_indices()
+        .nth(SHOWN_CHARS)
+        .map_or(line.len(), |(i, _)| start + i);
+    let mut shown = String::new();
+    if start > 0 {
+        shown.push(ELLIPSIS);
+    }
+    let at_in_shown = shown.len() + (at - start);
+    shown.push_str(&line[start..end]);
+    if end < line.len() {
+        shown.push(ELLIPSIS);
+    }
+    (shown, at_in_shown)
+}
+
+/// `text`, cut to [`SHOWN_CHARS`] characters with `…` if it is longer.
+fn shorten(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(SHOWN_CHARS) {
+        None => text.into(),
+        Some((cut, _)) => format!("{}{ELLIPSIS}", &text[..cut]).into(),
     }
 }
 

@@ -64,8 +64,45 @@ pub fn parse(src: &str) -> std::result::Result<Ast<'_>, Diagnostic> {
         src,
         c: Cursor::new(src),
     };
-    let items = p.file()?;
+    let items = p.file().map_err(|d| name_stray_character(src, d))?;
     Ok(Ast { src, items })
+}
+
+/// A syntax error found at a character the language never uses outside comments (one
+/// beyond ASCII, or an ASCII control character) names that character, with what was
+/// expected as a note: `chain dëfault` is a name with an `ë` in it, not a missing brace.
+fn name_stray_character(src: &str, d: Diagnostic) -> Diagnostic {
+    let stray = |at: usize| {
+        let c = src.get(at..)?.chars().next()?;
+        (!c.is_ascii() || (c.is_ascii_control() && !c.is_ascii_whitespace())).then_some((at, c))
+    };
+    // At the position, or just after the word it points at (`pört` is read as `p`).
+    let Some((start, c)) = stray(d.span.start).or_else(|| {
+        let after_word = src.get(d.span.start..d.span.end)?.chars().all(is_word_char);
+        (d.span.end > d.span.start && after_word)
+            .then(|| stray(d.span.end))
+            .flatten()
+    }) else {
+        return d;
+    };
+    let in_word = src[..start].chars().next_back().is_some_and(is_word_char);
+    let what = if in_word {
+        "cannot be part of a name: names are ASCII letters, digits and '_'"
+    } else {
+        "is not part of the language: outside comments it is written in ASCII"
+    };
+    let span = Span::new(start, start + c.len_utf8());
+    let mut named = Diagnostic::new(
+        span,
+        format!(
+            "the character '{}' (U+{:04X}) {what}",
+            c.escape_debug(),
+            u32::from(c)
+        ),
+    )
+    .with_note(d.message);
+    named.notes.extend(d.notes);
+    named
 }
 
 type Result<T> = std::result::Result<T, Diagnostic>;

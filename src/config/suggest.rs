@@ -28,17 +28,27 @@ pub fn edit_distance(a: &str, b: &str) -> usize {
     d[a.len() * w + b.len()]
 }
 
+/// Longest word (in characters) that gets suggestions: longer than any keyword or
+/// MAVLink message name, so the search stays cheap whatever a file holds.
+pub const MAX_WORD: usize = 64;
+
 /// Up to `max` candidates close to `word`, closest first (ties keep candidate order).
-/// "Close" means at most a third of the word's length in edits (at least 1, at most 3).
+/// "Close" means at most a third of the word's length in edits (at least 1, at most 3);
+/// candidates whose length differs by more are not compared, and a word longer than
+/// [`MAX_WORD`] gets none.
 pub fn closest<'c>(
     word: &str,
     candidates: impl IntoIterator<Item = &'c str>,
     max: usize,
 ) -> Vec<&'c str> {
-    let limit = (word.chars().count() / 3).clamp(1, 3);
+    let len = word.chars().count();
+    if len > MAX_WORD {
+        return Vec::new();
+    }
+    let limit = (len / 3).clamp(1, 3);
     let mut scored: Vec<(usize, &str)> = candidates
         .into_iter()
-        .filter(|c| *c != word)
+        .filter(|c| *c != word && c.chars().count().abs_diff(len) <= limit)
         .map(|c| (edit_distance(word, c), c))
         .filter(|(d, _)| *d <= limit)
         .collect();
@@ -82,6 +92,18 @@ mod tests {
             Some("did you mean 'baudrate'?")
         );
         assert_eq!(did_you_mean("zzzzzz", c), None);
+        let long = "A".repeat(MAX_WORD + 1);
+        let near = format!("{}B", "A".repeat(MAX_WORD));
+        assert_eq!(
+            did_you_mean(&long, [near.as_str()]),
+            None,
+            "too long to search"
+        );
+        let (long, near) = (&long[1..], &near[1..]);
+        assert!(
+            did_you_mean(long, [near]).is_some(),
+            "one edit from a {MAX_WORD}-char word"
+        );
         assert_eq!(closest("PIN", ["PING", "PONG", "PIN_X"], 3), vec!["PING"]);
         assert_eq!(
             closest("GPS_STATUSS", ["GPS_STATUS", "GPS_STATUSES", "X"], 3).len(),
