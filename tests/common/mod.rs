@@ -4,6 +4,7 @@
 pub mod browser;
 pub mod http_fixture;
 pub mod mavproxy;
+pub mod needs;
 pub mod net;
 pub mod process;
 pub mod router;
