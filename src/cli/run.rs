@@ -63,14 +63,9 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     let Some(path) = found else {
         return fail(err, "mavtables could not locate a configuration file");
     };
-    let src = match std::fs::read(&path) {
-        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
-        Err(e) => {
-            return fail(
-                err,
-                &format!("could not read configuration file {path}: {e}"),
-            );
-        }
+    let src = match config::read_source(Path::new(&path)) {
+        Ok(src) => src,
+        Err(e) => return fail(err, &format!("configuration file {path} {e}")),
     };
     if options.ast {
         return match config::parse(&src) {
