@@ -3,8 +3,8 @@
 //!
 //! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
-//! signing keys it names. [`read_source`] reads a configuration file, within
-//! [`CONFIG_FILE_LIMIT`].
+//! signing keys it names and [`check_signing_state`] checks its signing state file.
+//! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
 pub mod ast;
 pub mod claims;
@@ -23,7 +23,7 @@ pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
-pub use keys::read_keys;
+pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;
