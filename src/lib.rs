@@ -10,6 +10,8 @@
 //! - [`io`]: the event loop and the UDP / serial drivers;
 //! - [`recording`]: recording received frames to `.tlog` files (the sans-IO parts);
 //! - [`cli`]: the command line; [`commands`]: the `inspect` and `replay` subcommands;
+//! - [`files`]: bounded reads of the files the router is given (configuration, keys,
+//!   signing state);
 //! - [`utc`]: UTC calendar formatting of timestamps (logs and `inspect`);
 //! - [`address`]: MAVLink addresses and subnets.
 
@@ -24,6 +26,7 @@ pub mod cli;
 pub mod commands;
 pub mod config;
 pub mod dialect;
+pub mod files;
 pub mod filter;
 pub mod io;
 pub mod recording;

@@ -377,7 +377,7 @@ fn missing_empty_and_odd_key_files_are_located_errors() {
          f:3:33: key file {blank} is empty\n\
          serial {{ device /d; signing_key {blank}; }}\n                                {}\n\
          note: write the key as 64 hexadecimal digits, or a passphrase (the key is its SHA-256, as MAVProxy's 'signing setup')\n\
-         f:4:27: key file {directory} is not a regular file\n\
+         f:4:27: key file {directory} is a directory, not a regular file\n\
          udp {{ port 9; signing_key {directory}; }}\n                          {}\n",
         "^".repeat(missing.len()),
         "^".repeat(empty.len()),

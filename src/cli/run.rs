@@ -1,7 +1,7 @@
 //! Everything the binary does before the router starts.
 
 use super::{Options, find_config, help, parse, version};
-use crate::config::{self, Config, render_errors};
+use crate::config::{self, Config, StateFileError, render_errors};
 use crate::signing::SigningKey;
 use std::io::Write;
 use std::path::Path;
@@ -63,14 +63,9 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     let Some(path) = found else {
         return fail(err, "mavtables could not locate a configuration file");
     };
-    let src = match std::fs::read(&path) {
-        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
-        Err(e) => {
-            return fail(
-                err,
-                &format!("could not read configuration file {path}: {e}"),
-            );
-        }
+    let src = match config::read_source(Path::new(&path)) {
+        Ok(src) => src,
+        Err(e) => return fail(err, &format!("configuration file {path} {e}")),
     };
     if options.ast {
         return match config::parse(&src) {
@@ -95,14 +90,26 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
         let _ = writeln!(err, "warning: {path}: {w}");
     }
     // Keys are read for --check too, so a deploy script learns of an unreadable or
-    // unprotected key before the service starts; nothing of a key is ever printed.
-    let keys = match config::read_keys(&loaded.config, &src) {
-        Ok(keys) => keys,
-        Err(errors) => {
-            let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
-            return Outcome::Exit(1);
-        }
+    // unprotected key before the service starts; nothing of a key is ever printed. The
+    // signing state file is checked with them: a device, FIFO or huge file there is
+    // refused now rather than read, or later renamed over.
+    let (keys, mut errors) = match config::read_keys(&loaded.config, &src) {
+        Ok(keys) => (keys, Vec::new()),
+        Err(errors) => (Vec::new(), errors),
     };
+    let mut unlocated = None;
+    match config::check_signing_state(&loaded.config, &src, |k| std::env::var(k).ok()) {
+        Ok(()) => {}
+        Err(StateFileError::Located(d)) => errors.push(d),
+        Err(StateFileError::Default(message)) => unlocated = Some(message),
+    }
+    if !errors.is_empty() || unlocated.is_some() {
+        let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
+        if let Some(message) = unlocated {
+            let _ = writeln!(err, "error: {message}");
+        }
+        return Outcome::Exit(1);
+    }
     if options.check {
         let _ = writeln!(out, "{path}: configuration is valid");
         return Outcome::Exit(0);

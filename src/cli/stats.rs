@@ -89,9 +89,8 @@ fn from_config(explicit: Option<&str>, err: &mut dyn Write) -> Result<Endpoint, 
             None => "mavtables could not locate a configuration file; name it with --config or ask --url http://HOST:PORT".into(),
         }
     })?;
-    let src = std::fs::read(&path)
-        .map(|b| String::from_utf8_lossy(&b).into_owned())
-        .map_err(|e| format!("could not read configuration file {path}: {e}"))?;
+    let src = config::read_source(Path::new(&path))
+        .map_err(|e| format!("configuration file {path} {e}"))?;
     let loaded = match config::load(&src) {
         Ok(l) => l,
         Err(errors) => {

@@ -1,10 +1,13 @@
 //! Reading the interfaces' signing keys when the router starts (and for `--check`): each
 //! `signing_key` file is read once, and a key that cannot be had is a located error at
-//! the statement's path, like any other mistake in the file.
+//! the statement's path, like any other mistake in the file. The signing state file is
+//! checked at the same time: see [`check_signing_state`].
 
 use super::ast::{Item, SerialSetting, SocketSetting};
 use super::{Config, Diagnostic, Span, parse};
+use crate::files::{FileError, read_regular};
 use crate::signing::SigningKey;
+use crate::signing::state::STATE_FILE_LIMIT;
 use std::path::Path;
 
 /// The signing key of each of `config.interfaces` (same order; `None` for an interface
@@ -71,4 +74,54 @@ fn key_spans(src: &str) -> Vec<Option<Span>> {
             _ => None,
         })
         .collect()
+}
+
+/// A signing state file the router must not use, as [`check_signing_state`] found it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StateFileError {
+    /// The file named by the `signing_state` statement, located at its path.
+    Located(Diagnostic),
+    /// The default file (no statement names it): what is wrong, naming it.
+    Default(String),
+}
+
+/// Checks the signing state file `config` uses (see [`Config::signing_state_path`];
+/// `env` looks up an environment variable): when something is at its path, it must be a
+/// regular file of at most [`STATE_FILE_LIMIT`] bytes, since the router reads it at start
+/// and later renames a new file over it. A missing file is fine (it is written later),
+/// and so is one that cannot be read for another reason or does not hold a state: the
+/// router says so when it starts, and starts without it. `src` is the source `config`
+/// was loaded from, for locating the error at the `signing_state` statement.
+pub fn check_signing_state(
+    config: &Config,
+    src: &str,
+    env: impl Fn(&str) -> Option<String>,
+) -> Result<(), StateFileError> {
+    let Some(path) = config.signing_state_path(env) else {
+        return Ok(());
+    };
+    let e = match read_regular(&path, STATE_FILE_LIMIT) {
+        Ok(_) | Err(FileError::NotFound | FileError::Unreadable(_)) => return Ok(()),
+        Err(e) => e,
+    };
+    let message = format!("signing state file {} {e}", path.display());
+    let note = "mavtables reads this file at start and saves the state by renaming a new file over it: name a regular file, or a path where none exists yet";
+    let Some(written) = &config.signing_state else {
+        return Err(StateFileError::Default(format!("{message}; {note}")));
+    };
+    let at = state_span(src)
+        .filter(|s| src.get(s.start..s.end) == Some(written.as_str()))
+        .unwrap_or_default();
+    Err(StateFileError::Located(
+        Diagnostic::new(at, message).with_note(note),
+    ))
+}
+
+/// The path of the last `signing_state` statement of `src` (the one that counts).
+fn state_span(src: &str) -> Option<Span> {
+    let ast = parse(src).ok()?;
+    ast.items.iter().rev().find_map(|item| match item {
+        Item::SigningState { path, .. } => Some(*path),
+        _ => None,
+    })
 }

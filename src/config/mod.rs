@@ -3,7 +3,8 @@
 //!
 //! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
-//! signing keys it names.
+//! signing keys it names and [`check_signing_state`] checks its signing state file.
+//! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
 pub mod ast;
 pub mod claims;
@@ -22,12 +23,29 @@ pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
-pub use keys::read_keys;
+pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
 pub use semantics::Loaded;
+
+use crate::files::{FileError, read_regular};
+use std::path::Path;
+
+/// The largest configuration file read (16 MiB). A hand-written file with hundreds of
+/// rules is tens of KiB; the limit leaves room for generated ones while keeping a
+/// mistaken path (a log, a disk image) from being read into memory.
+pub const CONFIG_FILE_LIMIT: u64 = 16 << 20;
+
+/// The text of the configuration file at `path`, which must be a regular file (after
+/// following symlinks) of at most [`CONFIG_FILE_LIMIT`] bytes; see
+/// [`crate::files::read_regular`]. Bytes that are not UTF-8 become U+FFFD, which the
+/// lexer reports where they are.
+pub fn read_source(path: &Path) -> Result<String, FileError> {
+    let bytes = read_regular(path, CONFIG_FILE_LIMIT)?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
 
 /// A byte range `start..end` in a configuration source.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]

@@ -503,18 +503,21 @@ fn set_signing(
 }
 
 /// Opens the signing state file (when some interface has a key) and gives the core what
-/// it saved.
-fn open_state_file(config: &Config, engine: &mut Engine) -> Option<StateFile> {
+/// it saved; an error when something other than a state file is at its path.
+fn open_state_file(config: &Config, engine: &mut Engine) -> io::Result<Option<StateFile>> {
     if !engine.has_signing_keys() {
-        return None;
+        return Ok(None);
     }
-    let path = config.signing_state_path(|k| std::env::var(k).ok())?;
-    let (file, saved) = StateFile::open(path);
+    let Some(path) = config.signing_state_path(|k| std::env::var(k).ok()) else {
+        return Ok(None);
+    };
+    let (file, saved) = StateFile::open(path.clone())
+        .map_err(|e| io::Error::other(format!("signing state file {} {e}", path.display())))?;
     engine.set_wall_clock(Timestamp::ZERO, wall_clock());
     if let Some(state) = saved {
         engine.restore_signing_state(&state);
     }
-    Some(file)
+    Ok(Some(file))
 }
 
 fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Result<Runtime> {
@@ -584,7 +587,7 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
     if config.interfaces.is_empty() {
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
-    let state_file = open_state_file(config, &mut engine);
+    let state_file = open_state_file(config, &mut engine)?;
     let recorder = start_recording(config, &mut engine);
     let stats = match &config.stats {
         None => None,

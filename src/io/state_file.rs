@@ -11,7 +11,8 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
 
 use super::log;
-use crate::signing::state::SavedState;
+use crate::files::{FileError, read_regular};
+use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
 
 /// What the loop and the writer share: the text to write next, and whether to stop.
 #[derive(Default)]
@@ -29,10 +30,12 @@ pub struct StateFile {
 
 impl StateFile {
     /// The state saved at `path` by an earlier run (`None` if there is none or it cannot
-    /// be read: said in the log), and a writer for it.
-    pub fn open(path: PathBuf) -> (StateFile, Option<SavedState>) {
-        let saved = match fs::read_to_string(&path) {
-            Ok(text) => match SavedState::parse(&text) {
+    /// be read or understood: said in the log), and a writer for it. Something at `path`
+    /// that is not a regular file, or is larger than [`STATE_FILE_LIMIT`], is an error:
+    /// it is not read, and the writer would rename a file over it.
+    pub fn open(path: PathBuf) -> Result<(StateFile, Option<SavedState>), FileError> {
+        let saved = match read_regular(&path, STATE_FILE_LIMIT) {
+            Ok(bytes) => match SavedState::parse(&String::from_utf8_lossy(&bytes)) {
                 Ok(state) => Some(state),
                 Err(e) => {
                     log::warn(&format_args!(
@@ -42,14 +45,15 @@ impl StateFile {
                     None
                 }
             },
-            Err(e) if e.kind() == io::ErrorKind::NotFound => None,
-            Err(e) => {
+            Err(FileError::NotFound) => None,
+            Err(FileError::Unreadable(why)) => {
                 log::warn(&format_args!(
-                    "cannot read signing state {}: {e}; starting without it",
+                    "cannot read signing state {}: {why}; starting without it",
                     path.display()
                 ));
                 None
             }
+            Err(e) => return Err(e),
         };
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             let _ = fs::create_dir_all(dir);
@@ -63,14 +67,14 @@ impl StateFile {
                 .spawn(move || write_loop(&path, &shared))
                 .ok()
         };
-        (
+        Ok((
             StateFile {
                 path,
                 shared,
                 writer,
             },
             saved,
-        )
+        ))
     }
 
     /// Hands `state` to the writer (replacing one it has not written yet).
@@ -167,7 +171,7 @@ mod tests {
     fn saved_state_is_read_back_and_damage_is_not_fatal() {
         let dir = std::env::temp_dir().join(format!("mavtables-state-{}", std::process::id()));
         let path = dir.join("sub").join("signing.state");
-        let (file, saved) = StateFile::open(path.clone());
+        let (file, saved) = StateFile::open(path.clone()).expect("open");
         assert_eq!(saved, None);
         let state = SavedState {
             clean: true,
@@ -176,13 +180,28 @@ mod tests {
         };
         file.save(&state);
         file.finish(Some(&state));
-        let (file, saved) = StateFile::open(path.clone());
+        let (file, saved) = StateFile::open(path.clone()).expect("open");
         assert_eq!(saved, Some(state));
         file.finish(None);
         fs::write(&path, "garbage").expect("write");
-        let (file, saved) = StateFile::open(path.clone());
+        let (file, saved) = StateFile::open(path.clone()).expect("open");
         assert_eq!(saved, None);
         file.finish(None);
+        // Not a regular file, or too large: refused, not read.
+        fs::remove_file(&path).expect("remove");
+        std::os::unix::fs::symlink("/dev/zero", &path).expect("symlink");
+        assert!(matches!(
+            StateFile::open(path.clone()),
+            Err(FileError::NotRegular(_))
+        ));
+        fs::remove_file(&path).expect("remove");
+        File::create(&path)
+            .and_then(|f| f.set_len(STATE_FILE_LIMIT + 1))
+            .expect("sparse file");
+        assert!(matches!(
+            StateFile::open(path.clone()),
+            Err(FileError::TooLarge { .. })
+        ));
         let _ = fs::remove_dir_all(&dir);
     }
 }

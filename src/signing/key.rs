@@ -6,10 +6,14 @@
 //! theirs: the SHA-256 digest of the passphrase's bytes. See [`SigningKey::parse`] for the
 //! precise rule and [`SigningKey::read_file`] for the checks made on the file.
 
+use crate::files::{FileError, RegularFile, size_text};
 use sha2::{Digest, Sha256};
 use std::fmt;
-use std::io;
 use std::path::{Path, PathBuf};
+
+/// The largest key file read (4 KiB): a key is 64 hexadecimal digits and a passphrase a
+/// line of text, so anything larger is a mistaken path (a log, a disk image), not a key.
+pub const KEY_FILE_LIMIT: u64 = 4096;
 
 /// A MAVLink 2 signing key. Its `Debug` output does not show the key.
 #[derive(Clone, PartialEq, Eq)]
@@ -63,8 +67,9 @@ impl SigningKey {
     ///
     /// Like ssh with a private key, the file is refused when its permissions let anyone
     /// but its owner read or write it (any of the mode bits `0o077`): the key would be
-    /// as good as public. A file that is missing, not a regular file, unreadable or empty
-    /// is an error too. No error ever shows what the file holds.
+    /// as good as public. A file that is missing, not a regular file (after following
+    /// symlinks), larger than [`KEY_FILE_LIMIT`], unreadable or empty is an error too; a
+    /// device or FIFO is never read. No error ever shows what the file holds.
     pub fn read_file(path: &Path) -> Result<SigningKey, KeyError> {
         SigningKey::read_file_trusting(path, None)
     }
@@ -78,16 +83,16 @@ impl SigningKey {
         private_dir: Option<&Path>,
     ) -> Result<SigningKey, KeyError> {
         let fail = |problem| KeyError::new(Some(path), problem);
-        let meta = std::fs::metadata(path).map_err(|e| fail(Problem::from_io(&e)))?;
-        if !meta.is_file() {
-            return Err(fail(Problem::NotAFile));
-        }
-        let mode = file_mode(&meta);
+        let file = RegularFile::open(path).map_err(|e| fail(Problem::File(e)))?;
+        // The mode of the opened file: the one whose contents are read.
+        let mode = file_mode(file.metadata());
         let private = private_dir.is_some_and(|dir| inside(path, dir));
         if mode & 0o077 != 0 && !private {
             return Err(fail(Problem::OpenToOthers { mode }));
         }
-        let contents = std::fs::read(path).map_err(|e| fail(Problem::from_io(&e)))?;
+        let contents = file
+            .read_all(KEY_FILE_LIMIT)
+            .map_err(|e| fail(Problem::File(e)))?;
         SigningKey::parse(&contents).map_err(|e| fail(e.problem))
     }
 
@@ -154,29 +159,13 @@ pub struct KeyError {
 /// What was wrong with a key file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 enum Problem {
-    Missing,
-    NotAFile,
-    OpenToOthers { mode: u32 },
-    Unreadable(String),
+    /// Missing, not a regular file, too large or unreadable.
+    File(FileError),
+    OpenToOthers {
+        mode: u32,
+    },
     Empty,
     NotUtf8,
-}
-
-impl Problem {
-    fn from_io(e: &io::Error) -> Problem {
-        match e.kind() {
-            io::ErrorKind::NotFound => Problem::Missing,
-            // The OS's description without the "(os error N)" suffix.
-            _ => {
-                let text = e.to_string();
-                let text = match text.find(" (os error") {
-                    Some(i) => text[..i].to_string(),
-                    None => text,
-                };
-                Problem::Unreadable(text)
-            }
-        }
-    }
 }
 
 impl KeyError {
@@ -204,12 +193,10 @@ impl KeyError {
             None => "key file".to_string(),
         };
         match &self.problem {
-            Problem::Missing => format!("{file} does not exist"),
-            Problem::NotAFile => format!("{file} is not a regular file"),
+            Problem::File(e) => format!("{file} {e}"),
             Problem::OpenToOthers { mode } => {
                 format!("{file} can be read or written by other users (mode {mode:04o})")
             }
-            Problem::Unreadable(why) => format!("{file} cannot be read: {why}"),
             Problem::Empty => format!("{file} is empty"),
             Problem::NotUtf8 => {
                 format!("{file} holds neither 64 hexadecimal digits nor a UTF-8 passphrase")
@@ -231,7 +218,11 @@ impl KeyError {
                 "write the key as 64 hexadecimal digits, or a passphrase (the key is its SHA-256, as MAVProxy's 'signing setup')"
                     .to_string(),
             ),
-            Problem::Missing | Problem::NotAFile | Problem::Unreadable(_) => None,
+            Problem::File(FileError::TooLarge { .. }) => Some(format!(
+                "a key file holds 64 hexadecimal digits or a one-line passphrase, never more than {}",
+                size_text(KEY_FILE_LIMIT)
+            )),
+            Problem::File(_) => None,
         }
     }
 }

@@ -18,9 +18,22 @@ use std::fmt::Write;
 use super::clock::UNITS_PER_SEC;
 #[cfg(doc)]
 use super::key::SigningKey;
+use super::streams::MAX_STREAMS;
 
 /// The first line of a state file.
 pub const HEADER: &str = "mavtables signing state 1";
+
+/// The longest line a state file can have: a stream with the widest numbers,
+/// `stream 0123456789abcdef 255 255 255 18446744073709551615` and its line ending.
+const MAX_LINE: usize = "stream ".len() + 16 + 3 * " 255".len() + 1 + 20 + 1;
+
+/// The largest state file read (1 MiB). One written by mavtables has the header, the
+/// `clean` and `clock` lines and at most [`MAX_STREAMS`] stream lines: under 240 KiB.
+/// Anything larger was not written by mavtables and is refused, not read.
+pub const STATE_FILE_LIMIT: u64 = 1 << 20;
+
+// The limit leaves a margin of four times the largest file mavtables writes.
+const _: () = assert!(4 * (MAX_STREAMS + 3) * MAX_LINE <= STATE_FILE_LIMIT as usize);
 
 /// How often the state is saved while it changes (seconds).
 pub const SAVE_INTERVAL_SECS: u64 = 1;
@@ -148,6 +161,29 @@ mod tests {
         let text = state.to_text();
         assert!(text.contains("stream 9f86d081884c7d65 0 255 190 371234567000\n"));
         assert_eq!(SavedState::parse(&text), Ok(state));
+    }
+
+    #[test]
+    fn the_largest_state_is_well_within_the_limit() {
+        let widest = SavedStream {
+            key: [0xff; 8],
+            link_id: 255,
+            system: 255,
+            component: 255,
+            timestamp: u64::MAX,
+        };
+        let state = SavedState {
+            clean: false,
+            clock: u64::MAX,
+            streams: vec![widest; MAX_STREAMS],
+        };
+        let text = state.to_text();
+        assert!(text.lines().all(|l| l.len() < MAX_LINE), "a line is longer");
+        assert!(
+            4 * text.len() as u64 <= STATE_FILE_LIMIT,
+            "{} bytes",
+            text.len()
+        );
     }
 
     #[test]

@@ -1,0 +1,273 @@
+//! Bounded reads of the files mavtables is given by name: the configuration, key files
+//! and the signing state. Each must be a regular file (after following symlinks) of at
+//! most a stated size; a device, FIFO, socket or directory is refused without being read,
+//! and so is a file over the limit, so a mistaken or hostile path (`/dev/zero`, a FIFO
+//! without a writer, a huge file) costs neither memory nor a hang.
+//!
+//! The path is looked at first, so that a device is not even opened (opening a serial
+//! port can reset the board behind it). Then the file is opened without blocking (opening
+//! a FIFO would otherwise wait for a writer) and the opened handle is looked at again, so
+//! that what is read is what was checked even if the path changed in between; at most
+//! one byte more than the limit is read.
+
+use std::fmt;
+use std::fs::{File, FileType, Metadata, OpenOptions};
+use std::io::{self, Read};
+use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+use std::path::Path;
+
+/// Why a file could not be read. Its text never shows what the file holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FileError {
+    /// Nothing is at the path (or a symlink there leads nowhere).
+    NotFound,
+    /// Something other than a regular file is there.
+    NotRegular(FileKind),
+    /// The file holds more than `limit` bytes.
+    TooLarge {
+        /// The most bytes allowed.
+        limit: u64,
+    },
+    /// Opening or reading failed: the system's reason, without its error number.
+    Unreadable(String),
+}
+
+/// What is at a path that is not a regular file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FileKind {
+    /// A directory.
+    Directory,
+    /// A named pipe.
+    Fifo,
+    /// A character device (`/dev/zero`, a terminal, a serial port).
+    CharDevice,
+    /// A block device (a disk).
+    BlockDevice,
+    /// A Unix socket.
+    Socket,
+    /// Anything else.
+    Other,
+}
+
+impl FileKind {
+    fn of(file_type: FileType) -> FileKind {
+        if file_type.is_dir() {
+            FileKind::Directory
+        } else if file_type.is_fifo() {
+            FileKind::Fifo
+        } else if file_type.is_char_device() {
+            FileKind::CharDevice
+        } else if file_type.is_block_device() {
+            FileKind::BlockDevice
+        } else if file_type.is_socket() {
+            FileKind::Socket
+        } else {
+            FileKind::Other
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            FileKind::Directory => "a directory",
+            FileKind::Fifo => "a FIFO",
+            FileKind::CharDevice => "a character device",
+            FileKind::BlockDevice => "a block device",
+            FileKind::Socket => "a socket",
+            FileKind::Other => "a special file",
+        }
+    }
+}
+
+impl FileError {
+    fn from_io(e: &io::Error) -> FileError {
+        if e.kind() == io::ErrorKind::NotFound {
+            return FileError::NotFound;
+        }
+        let text = e.to_string();
+        let text = match text.find(" (os error") {
+            Some(i) => text[..i].to_string(),
+            None => text,
+        };
+        FileError::Unreadable(text)
+    }
+}
+
+/// Reads as a predicate of the file: "key file X" followed by it makes the message.
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FileError::NotFound => f.write_str("does not exist"),
+            FileError::NotRegular(kind) => write!(f, "is {}, not a regular file", kind.name()),
+            FileError::TooLarge { limit } => {
+                write!(f, "is larger than the limit of {}", size_text(*limit))
+            }
+            FileError::Unreadable(why) => write!(f, "cannot be read: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for FileError {}
+
+/// `bytes` in the largest binary unit that divides it (`4 KiB`, `16 MiB`).
+pub fn size_text(bytes: u64) -> String {
+    for (unit, size) in [("GiB", 1u64 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)] {
+        if bytes >= size && bytes.is_multiple_of(size) {
+            return format!("{} {unit}", bytes / size);
+        }
+    }
+    format!("{bytes} bytes")
+}
+
+/// A regular file opened for reading, with what `fstat` said of the open handle.
+#[derive(Debug)]
+pub struct RegularFile {
+    file: File,
+    metadata: Metadata,
+}
+
+impl RegularFile {
+    /// Opens the regular file at `path` (symlinks followed); anything else is refused
+    /// without being read, and devices without being opened.
+    pub fn open(path: &Path) -> Result<RegularFile, FileError> {
+        let seen = std::fs::metadata(path).map_err(|e| FileError::from_io(&e))?;
+        if !seen.is_file() {
+            return Err(FileError::NotRegular(FileKind::of(seen.file_type())));
+        }
+        let file = OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK | libc::O_NOCTTY)
+            .open(path)
+            .map_err(|e| FileError::from_io(&e))?;
+        let metadata = file.metadata().map_err(|e| FileError::from_io(&e))?;
+        if !metadata.is_file() {
+            return Err(FileError::NotRegular(FileKind::of(metadata.file_type())));
+        }
+        Ok(RegularFile { file, metadata })
+    }
+
+    /// What `fstat` said of the opened file (its mode, owner and size).
+    pub fn metadata(&self) -> &Metadata {
+        &self.metadata
+    }
+
+    /// The whole file, if it holds at most `limit` bytes (also when it grows while read).
+    pub fn read_all(self, limit: u64) -> Result<Vec<u8>, FileError> {
+        let too_large = FileError::TooLarge { limit };
+        if self.metadata.len() > limit {
+            return Err(too_large);
+        }
+        let expected = usize::try_from(self.metadata.len()).unwrap_or(0);
+        let mut bytes = Vec::with_capacity(expected.saturating_add(1));
+        self.file
+            .take(limit.saturating_add(1))
+            .read_to_end(&mut bytes)
+            .map_err(|e| FileError::from_io(&e))?;
+        if bytes.len() as u64 > limit {
+            return Err(too_large);
+        }
+        Ok(bytes)
+    }
+}
+
+/// The whole regular file at `path`, if it holds at most `limit` bytes (see
+/// [`RegularFile::open`] for what is refused).
+pub fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError> {
+    RegularFile::open(path)?.read_all(limit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+    use std::process::Command;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("mavtables-files-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        dir
+    }
+
+    #[test]
+    fn a_regular_file_within_the_limit_is_read_whole() {
+        let dir = scratch("ok");
+        let path = dir.join("f");
+        std::fs::write(&path, b"12345").expect("write");
+        assert_eq!(read_regular(&path, 5).as_deref(), Ok(&b"12345"[..]));
+        assert_eq!(
+            read_regular(&path, 4),
+            Err(FileError::TooLarge { limit: 4 })
+        );
+        std::fs::write(&path, b"").expect("write");
+        assert_eq!(read_regular(&path, 0), Ok(Vec::new()));
+        let link = dir.join("link");
+        std::os::unix::fs::symlink(&path, &link).expect("symlink");
+        assert_eq!(read_regular(&link, 0), Ok(Vec::new()));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn anything_but_a_regular_file_is_refused_unread() {
+        let dir = scratch("odd");
+        assert_eq!(
+            read_regular(&dir.join("nope"), 10),
+            Err(FileError::NotFound)
+        );
+        assert_eq!(
+            read_regular(&dir, 10),
+            Err(FileError::NotRegular(FileKind::Directory))
+        );
+        assert_eq!(
+            read_regular(Path::new("/dev/zero"), 10),
+            Err(FileError::NotRegular(FileKind::CharDevice))
+        );
+        let zero = dir.join("zero");
+        std::os::unix::fs::symlink("/dev/zero", &zero).expect("symlink");
+        assert_eq!(
+            read_regular(&zero, 10),
+            Err(FileError::NotRegular(FileKind::CharDevice))
+        );
+        let fifo = dir.join("fifo");
+        let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+        assert!(made.success());
+        assert_eq!(
+            read_regular(&fifo, 10),
+            Err(FileError::NotRegular(FileKind::Fifo))
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_sparse_file_over_the_limit_is_refused_unread() {
+        let dir = scratch("big");
+        let path = dir.join("big");
+        let f = File::create(&path).expect("create");
+        f.set_len(1 << 32).expect("set_len");
+        assert_eq!(
+            read_regular(&path, 1 << 20),
+            Err(FileError::TooLarge { limit: 1 << 20 })
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn messages_read_as_predicates() {
+        assert_eq!(FileError::NotFound.to_string(), "does not exist");
+        assert_eq!(
+            FileError::NotRegular(FileKind::Fifo).to_string(),
+            "is a FIFO, not a regular file"
+        );
+        assert_eq!(
+            FileError::TooLarge { limit: 4096 }.to_string(),
+            "is larger than the limit of 4 KiB"
+        );
+        assert_eq!(size_text(16 << 20), "16 MiB");
+        assert_eq!(size_text(1000), "1000 bytes");
+        let denied = io::Error::from_raw_os_error(libc::EACCES);
+        assert_eq!(
+            FileError::from_io(&denied).to_string(),
+            "cannot be read: Permission denied"
+        );
+    }
+}
