@@ -16,6 +16,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{self, Read, Write};
 
+use serde::ser::{Serialize, SerializeMap, Serializer};
+
 use crate::address::{Address, Subnet};
 use crate::capture::{Capture, Format, Unit, Units};
 use crate::dialect::{self, decode};
@@ -90,7 +92,10 @@ struct Sink<'a> {
     /// raw capture (one stream read in pieces).
     base: u64,
     timestamp_us: Option<u64>,
+    /// The text line being written.
     line: String,
+    /// The JSON line being written.
+    json: Vec<u8>,
     io_error: Option<io::Error>,
     /// Where the junk that is the problem ends, while it is the last event: a raw
     /// capture read in pieces reports a run of junk across two pieces in two parts,
@@ -156,36 +161,47 @@ impl Sink<'_> {
     }
 
     fn write_json(&mut self, f: &Frame<'_>) {
-        let line = &mut self.line;
-        line.clear();
-        let _ = write!(line, "{{\"offset\":{},\"time_us\":", self.base + f.offset());
-        match self.timestamp_us {
-            Some(ts) => {
-                let _ = write!(line, "{ts}");
-            }
-            None => line.push_str("null"),
-        }
-        let v = f.version().number();
-        let _ = write!(
-            line,
-            ",\"version\":{v},\"seq\":{},\"sys\":{},\"comp\":{},\"msg_id\":{},\"name\":\"{}\",\"len\":{},\"signed\":{},\"target\":",
-            f.seq(),
-            f.system(),
-            f.component(),
-            f.message_id(),
-            f.name(),
-            f.payload_len(),
-            f.is_signed()
-        );
-        match f.target() {
-            Some(t) => {
-                let _ = write!(line, "\"{t}\"");
-            }
-            None => line.push_str("null"),
-        }
-        line.push_str(",\"fields\":");
-        decode::write_json_fields(line, f.info(), f.payload());
-        line.push_str("}\n");
+        self.json.clear();
+        let frame = JsonFrame {
+            f,
+            offset: self.base + f.offset(),
+            time_us: self.timestamp_us,
+        };
+        // Into memory, of numbers and strings: this cannot fail.
+        let _ = serde_json::to_writer(&mut self.json, &frame);
+        self.json.push(b'\n');
+    }
+}
+
+/// One frame as `inspect --json` writes it: where and when it was, its header, and every
+/// field of its message.
+struct JsonFrame<'a, 'f> {
+    f: &'a Frame<'f>,
+    offset: u64,
+    time_us: Option<u64>,
+}
+
+impl Serialize for JsonFrame<'_, '_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let f = self.f;
+        let mut m = s.serialize_map(Some(13))?;
+        m.serialize_entry("offset", &self.offset)?;
+        m.serialize_entry("time_us", &self.time_us)?;
+        m.serialize_entry("version", &f.version().number())?;
+        m.serialize_entry("seq", &f.seq())?;
+        m.serialize_entry("sys", &f.system())?;
+        m.serialize_entry("comp", &f.component())?;
+        m.serialize_entry("msg_id", &f.message_id())?;
+        m.serialize_entry("name", f.name())?;
+        m.serialize_entry("len", &f.payload_len())?;
+        m.serialize_entry("signed", &f.is_signed())?;
+        m.serialize_entry("target", &f.target().map(|t| t.to_string()))?;
+        let fields = decode::Fields {
+            info: f.info(),
+            payload: f.payload(),
+        };
+        m.serialize_entry("fields", &fields)?;
+        m.end()
     }
 }
 
@@ -218,12 +234,14 @@ impl ParseEvents for Sink<'_> {
         if self.io_error.is_some() {
             return;
         }
-        if self.opts.json {
+        let written = if self.opts.json {
             self.write_json(&f);
+            &self.json[..]
         } else {
             self.write_text(&f);
-        }
-        if let Err(e) = self.out.write_all(self.line.as_bytes()) {
+            self.line.as_bytes()
+        };
+        if let Err(e) = self.out.write_all(written) {
             self.io_error = Some(e);
         }
     }
@@ -309,6 +327,7 @@ pub fn inspect(input: impl Read, opts: &Options, out: &mut dyn Write) -> Result<
             base: 0,
             timestamp_us: None,
             line: String::with_capacity(512),
+            json: Vec::with_capacity(1024),
             io_error: None,
             junk_problem: None,
         },

@@ -1,11 +1,11 @@
 //! Decoding message fields by name from a payload, using the dialect's field layout,
-//! and rendering them as JSON.
+//! and handing them to a serializer (`serde_json` writes them as JSON).
 //!
 //! A payload may be shorter than the message (MAVLink 2 drops trailing zero bytes: the
 //! missing bytes read as zero) or longer (a newer dialect's extension fields: the bytes
 //! past the known fields are ignored). Neither panics.
 
-use std::fmt::Write as _;
+use serde::ser::{Serialize, SerializeMap, SerializeSeq, Serializer};
 
 use super::{Field, FieldType, MessageInfo};
 
@@ -68,101 +68,97 @@ pub fn decode_field(field: &Field, payload: &[u8]) -> Value {
     )
 }
 
-/// Appends `s` to `out` as a JSON string literal.
-pub fn write_json_string(out: &mut String, s: &str) {
-    out.push('"');
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            '\n' => out.push_str("\\n"),
-            '\r' => out.push_str("\\r"),
-            '\t' => out.push_str("\\t"),
-            c if (c as u32) < 0x20 => {
-                let _ = write!(out, "\\u{:04x}", c as u32);
-            }
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-}
-
-/// Appends `value` as JSON. Non-finite floats, which JSON cannot express, become `null`.
-pub fn write_json_value(out: &mut String, value: &Value) {
-    match value {
-        Value::Int(v) => {
-            let _ = write!(out, "{v}");
-        }
-        Value::UInt(v) => {
-            let _ = write!(out, "{v}");
-        }
-        Value::Float(v) if v.is_finite() => {
-            // Debug keeps a decimal point or exponent, so the value reads back as a float.
-            let _ = write!(out, "{v:?}");
-        }
-        Value::Float(_) => out.push_str("null"),
-        Value::Text(s) => write_json_string(out, s),
-        Value::Array(items) => {
-            out.push('[');
-            for (i, item) in items.iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                write_json_value(out, item);
-            }
-            out.push(']');
+impl Serialize for Value {
+    /// JSON's forms: numbers, a string, an array; a non-finite float (which JSON cannot
+    /// express) becomes `null`.
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Value::Int(v) => s.serialize_i64(*v),
+            Value::UInt(v) => s.serialize_u64(*v),
+            Value::Float(v) => s.serialize_f64(*v),
+            Value::Text(t) => s.serialize_str(t),
+            Value::Array(items) => s.collect_seq(items),
         }
     }
 }
 
-/// Appends element `i` of `field` from `payload` as JSON, without building a [`Value`].
-/// `float` fields are written in their shortest form that reads back as the same
-/// `float` (`0.1`, not `0.10000000149011612`).
-fn write_json_element(out: &mut String, field: &Field, payload: &[u8], i: usize) {
-    match element(field, payload, i) {
-        Value::Float(v) if field.ty == FieldType::F32 && v.is_finite() => {
-            out.push_str(ryu::Buffer::new().format_finite(v as f32));
+/// Every field of a message decoded from its payload, for a serializer: one object
+/// (`{"name":value,...}`, wire order), strings and arrays as in [`decode_field`]. `float`
+/// fields are written in their shortest form that reads back as the same `float` (`0.1`,
+/// not `0.10000000149011612`). Nothing is decoded until it is serialized.
+#[derive(Debug, Clone, Copy)]
+pub struct Fields<'a> {
+    /// The message.
+    pub info: &'a MessageInfo,
+    /// Its payload (possibly truncated or longer than the known fields).
+    pub payload: &'a [u8],
+}
+
+impl Serialize for Fields<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(Some(self.info.fields.len()))?;
+        for field in self.info.fields {
+            let one = Element {
+                field,
+                payload: self.payload,
+            };
+            if field.array_len == 0 {
+                map.serialize_entry(field.name, &one.at(0))?;
+            } else if field.ty == FieldType::Char {
+                map.serialize_entry(field.name, &decode_field(field, self.payload))?;
+            } else {
+                map.serialize_entry(field.name, &one)?;
+            }
         }
-        Value::Float(v) if v.is_finite() => out.push_str(ryu::Buffer::new().format_finite(v)),
-        Value::UInt(v) => out.push_str(itoa::Buffer::new().format(v)),
-        Value::Int(v) => out.push_str(itoa::Buffer::new().format(v)),
-        other => write_json_value(out, &other),
+        map.end()
     }
 }
 
-/// Appends every field of `info` decoded from `payload` as one JSON object
-/// (`{"name":value,...}`, wire order). Strings and arrays as in [`decode_field`].
-pub fn write_json_fields(out: &mut String, info: &MessageInfo, payload: &[u8]) {
-    out.push('{');
-    for (n, field) in info.fields.iter().enumerate() {
-        if n > 0 {
-            out.push(',');
+/// One field of a payload; serialized as the array of its elements.
+#[derive(Clone, Copy)]
+struct Element<'a> {
+    field: &'a Field,
+    payload: &'a [u8],
+}
+
+/// Element `i` of a field, serialized as its wire type says (a `float` as an `f32`).
+struct At<'a>(Element<'a>, usize);
+
+impl<'a> Element<'a> {
+    fn at(self, i: usize) -> At<'a> {
+        At(self, i)
+    }
+}
+
+impl Serialize for Element<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let n = usize::from(self.field.array_len);
+        let mut seq = s.serialize_seq(Some(n))?;
+        for i in 0..n {
+            seq.serialize_element(&self.at(i))?;
         }
-        out.push('"');
-        out.push_str(field.name);
-        out.push_str("\":");
-        if field.array_len == 0 {
-            write_json_element(out, field, payload, 0);
-        } else if field.ty == FieldType::Char {
-            write_json_value(out, &decode_field(field, payload));
-        } else {
-            out.push('[');
-            for i in 0..field.array_len as usize {
-                if i > 0 {
-                    out.push(',');
-                }
-                write_json_element(out, field, payload, i);
-            }
-            out.push(']');
+        seq.end()
+    }
+}
+
+impl Serialize for At<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let At(e, i) = self;
+        match element(e.field, e.payload, *i) {
+            Value::Float(v) if e.field.ty == FieldType::F32 => s.serialize_f32(v as f32),
+            other => other.serialize(s),
         }
     }
-    out.push('}');
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::dialect::by_name;
+
+    fn json(info: &MessageInfo, payload: &[u8]) -> String {
+        serde_json::to_string(&Fields { info, payload }).expect("serializes")
+    }
 
     fn field(msg: &str, name: &str) -> &'static Field {
         by_name(msg)
@@ -191,8 +187,7 @@ mod tests {
             decode_field(field("PARAM_VALUE", "param_id"), &p),
             Value::Text("SYSID".into())
         );
-        let mut out = String::new();
-        write_json_fields(&mut out, by_name("PARAM_VALUE").expect("known"), &p);
+        let out = json(by_name("PARAM_VALUE").expect("known"), &p);
         assert_eq!(
             out,
             r#"{"param_value":1.5,"param_count":300,"param_index":0,"param_id":"SYSID","param_type":9}"#
@@ -216,15 +211,28 @@ mod tests {
 
     #[test]
     fn json_strings_are_escaped_and_nan_is_null() {
-        let mut out = String::new();
-        write_json_string(&mut out, "a\"b\\c\u{1}");
-        assert_eq!(out, r#""a\"b\\c\u0001""#);
-        let mut out = String::new();
-        write_json_value(
-            &mut out,
-            &Value::Array(vec![Value::Float(f64::NAN), Value::Float(2.0)]),
+        let text = |v: &Value| serde_json::to_string(v).expect("serializes");
+        assert_eq!(
+            text(&Value::Text("a\"b\\c\u{1}".into())),
+            r#""a\"b\\c\u0001""#
         );
-        assert_eq!(out, "[null,2.0]");
+        assert_eq!(
+            text(&Value::Array(vec![
+                Value::Float(f64::NAN),
+                Value::Float(2.0)
+            ])),
+            "[null,2.0]"
+        );
+        // A float field keeps its shortest f32 form; an array field is an array.
+        let mut p = vec![0u8; 28];
+        p[4..8].copy_from_slice(&0.1f32.to_le_bytes());
+        p[8..12].copy_from_slice(&f32::NAN.to_le_bytes());
+        let att = json(by_name("ATTITUDE").expect("known"), &p);
+        assert!(att.contains(r#""roll":0.1,"pitch":null,"#), "{att}");
+        let mut p = vec![0u8; 72];
+        p[12..16].copy_from_slice(&0.5f32.to_le_bytes());
+        let cov = json(by_name("ATTITUDE_QUATERNION_COV").expect("known"), &p);
+        assert!(cov.contains(r#""q":[0.0,0.5,0.0,0.0],"#), "{cov}");
     }
 
     #[test]
@@ -234,9 +242,7 @@ mod tests {
         let known = [1u8, 0, 0, 0, 2, 3, 0x51, 4, 3];
         let mut longer = known.to_vec();
         longer.resize(255, 0xff);
-        let (mut a, mut b) = (String::new(), String::new());
-        write_json_fields(&mut a, info, &known);
-        write_json_fields(&mut b, info, &longer);
+        let (a, b) = (json(info, &known), json(info, &longer));
         assert_eq!(a, b);
         assert!(a.starts_with(r#"{"custom_mode":1,"type":2,"#), "{a}");
     }

@@ -1,6 +1,7 @@
 //! The one HTTP request `mavtables stats` makes: a GET over a `TcpStream`, bounded in
 //! time and size, whose 200 answer's body is returned. Enough for the router's own
-//! statistics endpoint; not a general HTTP client.
+//! statistics endpoint; not a general HTTP client. The status line, the headers and the
+//! chunk sizes are read by `httparse`.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
@@ -89,77 +90,96 @@ fn read_all(stream: &mut TcpStream, deadline: Instant, authority: &str) -> Resul
     }
 }
 
+/// Most headers an answer may have.
+const MAX_HEADERS: usize = 32;
+
+/// An answer's head as `httparse` read it: its status, reason, the length of the head,
+/// and the two headers that say where the body ends.
+struct Head {
+    code: u16,
+    reason: String,
+    len: usize,
+    content_length: Option<Result<usize, ()>>,
+    chunked: bool,
+}
+
+/// The head of `raw`, `Ok(None)` while it is incomplete, `Err` if it is not HTTP/1.x.
+fn head(raw: &[u8]) -> Result<Option<Head>, &'static str> {
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut response = httparse::Response::new(&mut headers);
+    let len = match response.parse(raw) {
+        Ok(httparse::Status::Complete(len)) => len,
+        Ok(httparse::Status::Partial) => return Ok(None),
+        Err(_) => return Err("not an HTTP answer"),
+    };
+    let value = |name: &str| {
+        response
+            .headers
+            .iter()
+            .find(|h| h.name.eq_ignore_ascii_case(name))
+            .and_then(|h| std::str::from_utf8(h.value).ok())
+            .map(str::trim)
+    };
+    let content_length = value("content-length").map(|v| v.parse::<usize>().map_err(|_| ()));
+    let chunked =
+        value("transfer-encoding").is_some_and(|v| v.to_ascii_lowercase().contains("chunked"));
+    Ok(Some(Head {
+        code: response.code.unwrap_or(0),
+        reason: response.reason.unwrap_or("").to_string(),
+        len,
+        content_length,
+        chunked,
+    }))
+}
+
 /// The total length of an answer whose head is complete and names a `Content-Length`.
 fn complete_length(raw: &[u8]) -> Option<usize> {
-    let end = find(raw, b"\r\n\r\n")? + 4;
-    let head = std::str::from_utf8(&raw[..end]).ok()?;
-    let len = header(head, "content-length")?.parse::<usize>().ok()?;
-    end.checked_add(len)
+    let head = head(raw).ok()??;
+    head.len.checked_add(head.content_length?.ok()?)
 }
 
 /// The body of a complete answer, if its status is 200.
 pub fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
-    let Some(head_len) = find(raw, b"\r\n\r\n") else {
-        return Err(if raw.is_empty() {
-            "closed the connection without answering".into()
-        } else {
-            "not an HTTP answer".into()
-        });
+    let head = match head(raw) {
+        Ok(Some(head)) => head,
+        Ok(None) if raw.is_empty() => return Err("closed the connection without answering".into()),
+        Ok(None) | Err(_) => return Err("not an HTTP answer".into()),
     };
-    let head = std::str::from_utf8(&raw[..head_len]).map_err(|_| "not an HTTP answer")?;
-    let status_line = head.lines().next().unwrap_or("");
-    let mut parts = status_line.splitn(3, ' ');
-    let (version, code) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
-    if !version.starts_with("HTTP/1.") || code.len() != 3 {
-        return Err("not an HTTP answer".into());
+    if head.code != 200 {
+        return Err(format!("answered {} {}", head.code, head.reason)
+            .trim_end()
+            .to_string());
     }
-    if code != "200" {
-        return Err(format!("answered {}", status_line.get(9..).unwrap_or(code)));
-    }
-    let body = &raw[head_len + 4..];
-    let chunked = header(head, "transfer-encoding")
-        .is_some_and(|v| v.to_ascii_lowercase().contains("chunked"));
-    if chunked {
+    let body = &raw[head.len..];
+    if head.chunked {
         return dechunk(body).ok_or_else(|| "malformed chunked answer".to_string());
     }
-    match header(head, "content-length") {
-        Some(len) => {
-            let len: usize = len.parse().map_err(|_| "bad Content-Length")?;
-            body.get(..len)
-                .map(<[u8]>::to_vec)
-                .ok_or_else(|| "answer shorter than its Content-Length".to_string())
-        }
+    match head.content_length {
+        Some(Ok(len)) => body
+            .get(..len)
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| "answer shorter than its Content-Length".to_string()),
+        Some(Err(())) => Err("bad Content-Length".into()),
         None => Ok(body.to_vec()),
     }
-}
-
-/// The value of header `name` (lower case) in `head`.
-fn header<'a>(head: &'a str, name: &str) -> Option<&'a str> {
-    head.lines().skip(1).find_map(|line| {
-        let (key, value) = line.split_once(':')?;
-        key.trim().eq_ignore_ascii_case(name).then(|| value.trim())
-    })
 }
 
 /// The data of a chunked body, `None` if it is malformed or incomplete.
 fn dechunk(mut body: &[u8]) -> Option<Vec<u8>> {
     let mut out = Vec::new();
     loop {
-        let line_end = find(body, b"\r\n")?;
-        let size_text = std::str::from_utf8(&body[..line_end]).ok()?;
-        let size_text = size_text.split(';').next()?.trim();
-        let size = usize::from_str_radix(size_text, 16).ok()?;
-        body = &body[line_end + 2..];
+        let (at, size) = match httparse::parse_chunk_size(body).ok()? {
+            httparse::Status::Complete(found) => found,
+            httparse::Status::Partial => return None,
+        };
+        let size = usize::try_from(size).ok()?;
+        body = &body[at..];
         if size == 0 {
             return Some(out);
         }
         out.extend_from_slice(body.get(..size)?);
         body = body.get(size..)?.strip_prefix(b"\r\n")?;
     }
-}
-
-fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
-    haystack.windows(needle.len()).position(|w| w == needle)
 }
 
 #[cfg(test)]
