@@ -13,7 +13,7 @@ use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use common::router::{BIN, Peer, Router, Scratch, Stopped, free_udp_port, hexes};
+use common::router::{BIN, Guard, Peer, Router, Scratch, Stopped, free_udp_port, hexes};
 use common::run_py;
 
 /// A mix of message types of several lengths (a target on COMMAND_LONG).
@@ -905,3 +905,98 @@ fn max_files_removes_only_recordings_the_router_made() {
     );
 }
 
+/// Runs `mavtables ARGS`, which must exit within 10 s; its status and standard error.
+fn run_to_exit(args: &[&Path]) -> (Option<i32>, String) {
+    let child = Command::new(BIN)
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn mavtables");
+    let mut guard = Guard(Some(child));
+    let mut stderr = guard.child().stderr.take().expect("stderr");
+    let status = guard.wait(Duration::from_secs(10));
+    let mut err = String::new();
+    if status.is_some() {
+        use std::io::Read;
+        let _ = stderr.read_to_string(&mut err);
+    }
+    (status.and_then(|s| s.code()), err)
+}
+
+#[test]
+fn a_fixed_name_that_mavtables_did_not_write_is_refused_and_left_alone() {
+    let scratch = Scratch::new("record-fixed");
+    let dir = scratch.dir.join("etc");
+    fs::create_dir_all(&dir).expect("dir");
+    let important = dir.join("important.conf");
+    fs::write(&important, "precious settings\n").expect("important");
+    date_back(&important, new_year(1999));
+    let port = free_udp_port();
+    let config = format!(
+        "udp {{ port {port}; }}\nrecord {{\n    path {}; max_files 1;\n}}\ndefault_action accept;\n",
+        important.display()
+    );
+    let conf = scratch.dir.join("fixed.conf");
+    fs::write(&conf, &config).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{err}");
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| !l.starts_with("warning: "))
+        .collect();
+    assert_eq!(
+        lines.first().copied(),
+        Some(
+            format!(
+                "{}:3:10: {} exists and was not written by mavtables",
+                conf.display(),
+                important.display()
+            )
+            .as_str()
+        ),
+        "{err}"
+    );
+    assert_eq!(
+        lines[1],
+        format!("    path {}; max_files 1;", important.display())
+    );
+    assert_eq!(
+        lines[2],
+        format!(
+            "         {}",
+            "^".repeat(important.display().to_string().len())
+        )
+    );
+    assert!(err.contains("important_%Y-%m-%d_%H-%M-%S.conf"), "{err}");
+    // Starting is refused the same way, before anything is written.
+    let (code, start_err) = run_to_exit(&[Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{start_err}");
+    assert_eq!(start_err, err);
+    assert_eq!(
+        fs::read_to_string(&important).ok().as_deref(),
+        Some("precious settings\n")
+    );
+    let names: Vec<_> = fs::read_dir(&dir)
+        .expect("dir")
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(names, ["important.conf"], "nothing else was written there");
+    // A fixed name whose file the router made is its recording: accepted, and rotated.
+    let flight = dir.join("flight.tlog");
+    let config = format!(
+        "udp {{ port {port}; }}\nrecord {{ path {}; max_files 1; min_free_bytes 0; }}\ndefault_action accept;\n",
+        flight.display()
+    );
+    Router::start(&scratch, &config, 0).stop();
+    assert!(flight.exists());
+    fs::write(&conf, &config).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(0), "{err}");
+    Router::start(&scratch, &config, 0).stop();
+    assert!(!flight.exists(), "the old recording was rotated away");
+    assert!(dir.join("flight-1.tlog").exists());
+    assert!(important.exists());
+}

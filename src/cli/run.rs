@@ -103,6 +103,12 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
             return Outcome::Exit(1);
         }
     };
+    // The recording path too: a fixed file name that names a file mavtables did not
+    // write is refused before anything runs.
+    if let Err(errors) = config::check_record_path(&loaded.config, &src) {
+        let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
+        return Outcome::Exit(1);
+    }
     if options.check {
         let _ = writeln!(out, "{path}: configuration is valid");
         return Outcome::Exit(0);
