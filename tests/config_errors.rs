@@ -485,3 +485,31 @@ fn a_huge_name_gets_a_short_error_at_once() {
     let near = all("chain default {\n    accept if HEARTBEET;\n}\n");
     assert!(near.contains("did you mean 'HEARTBEAT'?"), "{near}");
 }
+
+#[test]
+fn record_file_names_must_fit_the_file_system() {
+    // Names of up to 255 bytes, counting the suffix `-9999` a taken name gets.
+    let name = format!("{}_%Y.tlog", "a".repeat(250));
+    check(
+        &format!("record {{ path /var/log/{name}; }}"),
+        "1:24: the file names of this pattern take up to 265 bytes, more than the 255 a file name may have",
+    );
+    let fits = format!("{}_%Y.tlog", "a".repeat(225));
+    assert!(config::load(&format!("record {{ path /var/log/{fits}; }}")).is_ok());
+    // Every directive counted at its width (%Y: four digits), and the note says what to do.
+    let text = all(&format!(
+        "record {{\n    path {}.tlog;\n}}",
+        "%Y".repeat(63)
+    ));
+    assert!(
+        text.starts_with("f:2:10: the file names of this pattern take up to 262 bytes"),
+        "{text}"
+    );
+    assert!(text.contains("note: counting the suffix -9999"), "{text}");
+    // The list of recordings beside them is named after the pattern: it must fit too.
+    check(
+        &format!("record {{ path /r/{}.tlog; }}", "%%".repeat(118)),
+        "1:18: the list of recordings of this pattern would be named with 256 bytes, more than the 255 a file name may have",
+    );
+    assert!(config::load(&format!("record {{ path /r/{}.tlog; }}", "%%".repeat(117))).is_ok());
+}

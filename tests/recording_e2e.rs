@@ -13,7 +13,7 @@ use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use common::router::{BIN, Peer, Router, Scratch, Stopped, free_udp_port, hexes};
+use common::router::{BIN, Guard, Peer, Router, Scratch, Stopped, free_udp_port, hexes};
 use common::run_py;
 
 /// A mix of message types of several lengths (a target on COMMAND_LONG).
@@ -489,50 +489,128 @@ fn a_full_disk_drops_records_never_packets() {
     assert_eq!(fs::metadata(&files[0]).expect("meta").len(), c.bytes);
 }
 
-/// A 1 MiB disk holding an old recording of `old_bytes`, recorded to with
-/// `min_free_bytes` while `n` frames are routed: whether the old recording is still
-/// there, what was sent and how the router stopped. `None` when no tmpfs can be mounted.
+/// `year`-01-01 00:00:00 UTC.
+fn new_year(year: i32) -> SystemTime {
+    let days = (1970..year)
+        .map(|y| if y % 4 == 0 { 366 } else { 365 })
+        .sum::<u64>();
+    UNIX_EPOCH + Duration::from_secs(days * 86_400)
+}
+
+/// Dates `path` back to `time` (its modification time: what rotation goes by).
+fn date_back(path: &Path, time: SystemTime) {
+    let file = fs::File::options()
+        .write(true)
+        .open(path)
+        .expect("open to date back");
+    file.set_modified(time).expect("set mtime");
+}
+
+/// Runs the router on `config` once, without traffic, and returns the recording it
+/// made (the `.tlog` in `dir` that `before` does not hold).
+fn one_run(scratch: &Scratch, config: &str, dir: &Path, before: &[PathBuf]) -> PathBuf {
+    Router::start(scratch, config, 0).stop();
+    let made: Vec<PathBuf> = recordings(dir)
+        .into_iter()
+        .filter(|p| !before.contains(p))
+        .collect();
+    let [made] = made.as_slice() else {
+        panic!("expected one new recording in {}: {made:?}", dir.display());
+    };
+    made.clone()
+}
+
+/// A file of the user's at `path` (a name the pattern makes), dated back to 1999: older
+/// than any recording. Returns its bytes.
+fn plant(path: &Path) -> Vec<u8> {
+    let bytes: Vec<u8> = (0..20_000u32).map(|i| (i * 7 % 251) as u8).collect();
+    fs::write(path, &bytes).expect("plant");
+    date_back(path, new_year(1999));
+    bytes
+}
+
+/// What became of the files on the disk before the router ran.
+struct Before {
+    /// Whether the recording of an earlier run is still there.
+    old_kept: bool,
+    /// Whether the user's file with a name of the pattern is there, byte for byte.
+    planted_intact: bool,
+}
+
+/// A 1 MiB disk holding a recording of an earlier run, grown to `old_bytes` and dated
+/// 2000, and a user's file with a name the pattern makes, dated 1999; recorded to with
+/// `min_free_bytes` while `n` frames are routed: what became of the two, what was sent
+/// and how the router stopped. `None` when no tmpfs can be mounted.
 fn with_old_recording(
     tag: &str,
     old_bytes: usize,
     min_free_bytes: u64,
     n: usize,
-) -> Option<(bool, Vec<String>, Stopped)> {
+) -> Option<(Before, Vec<String>, Stopped)> {
     let scratch = Scratch::new(tag);
     let mnt = scratch.dir.join("disk");
     let _disk = Tmpfs::mount(&mnt)?;
-    let old = mnt.join("2000-01-01_00-00-00.tlog");
-    fs::write(&old, vec![0u8; old_bytes]).expect("old recording");
     let port = free_udp_port();
+    let old = one_run(
+        &scratch,
+        &record_config(port, &mnt, "min_free_bytes 0;"),
+        &mnt,
+        &[],
+    );
+    {
+        use std::io::Write;
+        let mut f = fs::OpenOptions::new()
+            .append(true)
+            .open(&old)
+            .expect("grow the old recording");
+        f.write_all(&vec![0u8; old_bytes]).expect("grow");
+    }
+    date_back(&old, new_year(2000));
+    let planted = mnt.join("1999-12-31_23-59-59.tlog");
+    let bytes = plant(&planted);
     let extra = format!("min_free_bytes {min_free_bytes};");
     let config = record_config(port, &mnt, &extra);
     let (sent, stopped) = route_through(&scratch, &config, port, n);
-    Some((old.exists(), sent, stopped))
+    let before = Before {
+        old_kept: old.exists(),
+        planted_intact: fs::read(&planted).ok() == Some(bytes),
+    };
+    Some((before, sent, stopped))
 }
 
 #[test]
-fn old_recordings_make_room_for_min_free_bytes() {
-    let Some((kept, sent, stopped)) = with_old_recording("record-room", 700_000, 500_000, 50)
+fn old_recordings_make_room_for_min_free_bytes_never_other_files() {
+    let Some((before, sent, stopped)) = with_old_recording("record-room", 700_000, 500_000, 50)
     else {
         return;
     };
     assert!(
-        !kept,
+        !before.old_kept,
         "the old recording was removed to keep 500000 bytes free"
+    );
+    assert!(
+        before.planted_intact,
+        "a file the router did not write is never removed, whatever its name and age"
     );
     let c = counts(&stopped);
     assert_eq!(c.removed, 1);
     assert_eq!(c.written, sent.len() as u64 + 1);
     assert_eq!(c.disk + c.no_space + c.queue_full, 0);
+    assert_eq!(said(&stopped, "1 files in"), 1, "the planted file is said");
 }
 
 #[test]
 fn without_min_free_bytes_records_are_dropped_and_old_recordings_kept() {
-    let Some((kept, sent, stopped)) = with_old_recording("record-nospace", 10_000, 2_000_000, 100)
+    let Some((before, sent, stopped)) =
+        with_old_recording("record-nospace", 10_000, 2_000_000, 100)
     else {
         return;
     };
-    assert!(kept, "removing it would not have made room: it stays");
+    assert!(
+        before.old_kept,
+        "removing it would not have made room: it stays"
+    );
+    assert!(before.planted_intact);
     let c = counts(&stopped);
     assert_eq!(c.no_space, sent.len() as u64 + 1, "{c:?}");
     assert_eq!(c.written + c.removed + c.disk, 0);
@@ -781,4 +859,144 @@ fn the_documented_record_blocks_are_valid() {
             panic!("{}", mavtables::config::render_errors("doc", block, &e));
         }
     }
+}
+
+#[test]
+fn max_files_removes_only_recordings_the_router_made() {
+    let scratch = Scratch::new("record-planted");
+    let port = free_udp_port();
+    let dir = scratch.dir.join("rec");
+    // Two runs without a limit: two recordings.
+    let unlimited = record_config(port, &dir, "max_files 0; min_free_bytes 0;");
+    let first = one_run(&scratch, &unlimited, &dir, &[]);
+    let second = one_run(&scratch, &unlimited, &dir, std::slice::from_ref(&first));
+    // The user removes the first and puts a file of theirs at its name (the freed inode
+    // number is likely given to it), and plants another with a name of the pattern;
+    // both are older than any recording.
+    fs::remove_file(&first).expect("remove the first");
+    let at_first = plant(&first);
+    let planted = dir.join("1999-12-31_23-59-59.tlog");
+    let bytes = plant(&planted);
+    // With max_files 1 the new recording stays and the second goes: the files the
+    // router did not write neither count nor go.
+    let one = record_config(port, &dir, "max_files 1; min_free_bytes 0;");
+    let router = Router::start(&scratch, &one, 0);
+    let stopped = router.stop();
+    assert_eq!(
+        fs::read(&planted).ok(),
+        Some(bytes),
+        "the planted file is intact"
+    );
+    assert_eq!(
+        fs::read(&first).ok(),
+        Some(at_first),
+        "the file put at a removed recording's name is intact"
+    );
+    assert!(!second.exists(), "the older recording was rotated away");
+    let left = recordings(&dir);
+    assert_eq!(left.len(), 3, "{left:?}");
+    assert_eq!(counts(&stopped).removed, 1);
+    // The list of recordings is beside them, named after the pattern.
+    let list = fs::read_to_string(dir.join(".%Y-%m-%d_%H-%M-%S.tlog.mavtables")).expect("list");
+    assert_eq!(
+        list.lines().filter(|l| !l.starts_with('#')).count(),
+        1,
+        "{list}"
+    );
+}
+
+/// Runs `mavtables ARGS`, which must exit within 10 s; its status and standard error.
+fn run_to_exit(args: &[&Path]) -> (Option<i32>, String) {
+    let child = Command::new(BIN)
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn mavtables");
+    let mut guard = Guard(Some(child));
+    let mut stderr = guard.child().stderr.take().expect("stderr");
+    let status = guard.wait(Duration::from_secs(10));
+    let mut err = String::new();
+    if status.is_some() {
+        use std::io::Read;
+        let _ = stderr.read_to_string(&mut err);
+    }
+    (status.and_then(|s| s.code()), err)
+}
+
+#[test]
+fn a_fixed_name_that_mavtables_did_not_write_is_refused_and_left_alone() {
+    let scratch = Scratch::new("record-fixed");
+    let dir = scratch.dir.join("etc");
+    fs::create_dir_all(&dir).expect("dir");
+    let important = dir.join("important.conf");
+    fs::write(&important, "precious settings\n").expect("important");
+    date_back(&important, new_year(1999));
+    let port = free_udp_port();
+    let config = format!(
+        "udp {{ port {port}; }}\nrecord {{\n    path {}; max_files 1;\n}}\ndefault_action accept;\n",
+        important.display()
+    );
+    let conf = scratch.dir.join("fixed.conf");
+    fs::write(&conf, &config).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{err}");
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| !l.starts_with("warning: "))
+        .collect();
+    assert_eq!(
+        lines.first().copied(),
+        Some(
+            format!(
+                "{}:3:10: {} exists and was not written by mavtables",
+                conf.display(),
+                important.display()
+            )
+            .as_str()
+        ),
+        "{err}"
+    );
+    assert_eq!(
+        lines[1],
+        format!("    path {}; max_files 1;", important.display())
+    );
+    assert_eq!(
+        lines[2],
+        format!(
+            "         {}",
+            "^".repeat(important.display().to_string().len())
+        )
+    );
+    assert!(err.contains("important_%Y-%m-%d_%H-%M-%S.conf"), "{err}");
+    // Starting is refused the same way, before anything is written.
+    let (code, start_err) = run_to_exit(&[Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{start_err}");
+    assert_eq!(start_err, err);
+    assert_eq!(
+        fs::read_to_string(&important).ok().as_deref(),
+        Some("precious settings\n")
+    );
+    let names: Vec<_> = fs::read_dir(&dir)
+        .expect("dir")
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(names, ["important.conf"], "nothing else was written there");
+    // A fixed name whose file the router made is its recording: accepted, and rotated.
+    let flight = dir.join("flight.tlog");
+    let config = format!(
+        "udp {{ port {port}; }}\nrecord {{ path {}; max_files 1; min_free_bytes 0; }}\ndefault_action accept;\n",
+        flight.display()
+    );
+    Router::start(&scratch, &config, 0).stop();
+    assert!(flight.exists());
+    fs::write(&conf, &config).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(0), "{err}");
+    Router::start(&scratch, &config, 0).stop();
+    assert!(!flight.exists(), "the old recording was rotated away");
+    assert!(dir.join("flight-1.tlog").exists());
+    assert!(important.exists());
 }

@@ -103,6 +103,11 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
         Err(StateFileError::Located(d)) => errors.push(d),
         Err(StateFileError::Default(message)) => unlocated = Some(message),
     }
+    // The recording path too: a fixed file name that names a file mavtables did not
+    // write is refused before anything runs.
+    if let Err(more) = config::check_record_path(&loaded.config, &src) {
+        errors.extend(more);
+    }
     if !errors.is_empty() || unlocated.is_some() {
         let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
         if let Some(message) = unlocated {

@@ -3,7 +3,8 @@
 //!
 //! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
-//! signing keys it names and [`check_signing_state`] checks its signing state file.
+//! signing keys it names, [`check_signing_state`] checks its signing state file, and
+//! [`check_record_path`] looks at the file a `record` path without `%` fields names.
 //! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
 pub mod ast;
@@ -16,6 +17,7 @@ pub mod model;
 pub mod net;
 pub mod parser;
 pub mod printer;
+pub mod record_path;
 pub mod recording;
 pub mod semantics;
 pub mod sockets;
@@ -28,6 +30,7 @@ pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
+pub use record_path::check_record_path;
 pub use semantics::Loaded;
 
 use crate::files::{FileError, read_regular};

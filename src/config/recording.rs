@@ -7,7 +7,8 @@ use super::ast::{Ast, RecordSetting};
 use super::diagnostic::Diagnostic;
 use super::model::{Condition, Recording};
 use super::semantics::ranged;
-use crate::recording::FilePattern;
+use crate::recording::pattern::{MAX_SUFFIX, NAME_MAX};
+use crate::recording::{FilePattern, Manifest};
 
 /// The recording a `record` block describes, given its `only` conditions already
 /// checked (`None` where one was wrong); every mistake is added to `errors`. A
@@ -54,7 +55,16 @@ pub fn check(
     if let Some(span) = path {
         let text = ast.text(span);
         match FilePattern::parse(text) {
-            Ok(_) => record.path = Some(text.to_string()),
+            Ok(pattern) => match too_long(&pattern) {
+                None => record.path = Some(text.to_string()),
+                Some((message, note)) => {
+                    let name_at = span.end - pattern.name_pattern().len();
+                    errors.push(
+                        Diagnostic::new(Span::new(name_at, span.end), message).with_note(note),
+                    );
+                    ok = false;
+                }
+            },
             Err(e) => {
                 let at = Span::new(span.start + e.at.start, span.start + e.at.end);
                 errors.push(Diagnostic::new(at, e.message).with_note(e.note));
@@ -69,4 +79,29 @@ pub fn check(
         }
     }
     ok.then_some(record)
+}
+
+/// What is wrong (and a note) when `pattern` makes names longer than a file system
+/// allows: a recording's with the largest suffix, or its list's temporary file's.
+fn too_long(pattern: &FilePattern) -> Option<(String, String)> {
+    let longest = pattern.longest_name();
+    if longest > NAME_MAX {
+        return Some((
+            format!(
+                "the file names of this pattern take up to {longest} bytes, more than the {NAME_MAX} a file name may have"
+            ),
+            format!(
+                "counting the suffix -{MAX_SUFFIX} added when a name is taken; shorten the file name"
+            ),
+        ));
+    }
+    let list = Manifest::longest_name(pattern);
+    (list > NAME_MAX).then(|| {
+        (
+            format!(
+                "the list of recordings of this pattern would be named with {list} bytes, more than the {NAME_MAX} a file name may have"
+            ),
+            "the list beside the recordings is named '.' + the file name pattern + '.mavtables' (written as '.mavtables.tmp' first); shorten the file name".to_string(),
+        )
+    })
 }

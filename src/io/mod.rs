@@ -8,12 +8,14 @@
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `log`: log lines and messages, written without ever blocking the loop;
-//! - `recorder`: `.tlog` recordings, written by a thread of their own;
+//! - `recorder`: `.tlog` recordings, written by a thread of their own; [`manifest`]: the
+//!   file listing the recordings it created (the only ones it removes);
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod log;
+pub mod manifest;
 mod recorder;
 mod resolve;
 mod runtime;

@@ -7,7 +7,10 @@
 //! lock. The writer takes the whole queue at least every 200 ms (sooner when a quarter of
 //! it is full) and writes it: a new file when the current one would pass
 //! `max_file_bytes` (the oldest recordings beyond `max_files` are removed then), old
-//! recordings removed while the disk has less than `min_free_bytes` free. Records that
+//! recordings removed while the disk has less than `min_free_bytes` free. Only the
+//! files the writer created are ever appended to, cut back or removed: each new file is
+//! created afresh (never opened if it exists) and put on the list of recordings
+//! ([`MadeList`]), and rotation chooses among the files on that list only. Records that
 //! do not fit — the queue is full, the disk fails or has no room left — are dropped and
 //! counted, never packets; each kind of trouble is said once, and again when it is over.
 //! At exit the last records are written and the file is synced and closed.
@@ -21,10 +24,12 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use super::manifest::MadeList;
 use super::{log, sys};
 use crate::capture::tlog::TIMESTAMP_LEN;
 use crate::config::Recording;
-use crate::recording::rotation::{self, Existing};
+use crate::recording::pattern::MAX_SUFFIX;
+use crate::recording::rotation;
 use crate::recording::{FilePattern, LocalTime, RecorderStats};
 use crate::routing::{Engine, Timestamp};
 
@@ -36,8 +41,6 @@ const WAKE_AT: usize = QUEUE_BOUND / 4;
 /// The writer takes the queue at least this often, so that records reach the file
 /// (where readers see them) within this time.
 const WRITE_EVERY: Duration = Duration::from_millis(200);
-/// The largest suffix tried when a file name is taken.
-const MAX_SUFFIX: u32 = 9999;
 
 /// Records waiting for the writer: `bytes` holds them back to back (timestamp and
 /// frame), `lens` the length of each.
@@ -100,21 +103,31 @@ impl Recorder {
     /// first file at once.
     pub fn start(record: &Recording, pattern: FilePattern) -> Recorder {
         let shared = Arc::new(Shared::default());
-        let writer = Writer {
-            dir: PathBuf::from(pattern.dir()),
-            pattern,
-            max_file_bytes: record.max_file_bytes,
-            max_files: record.max_files,
-            min_free_bytes: record.min_free_bytes,
-            shared: shared.clone(),
-            file: None,
-            name: None,
-            size: 0,
-            trouble: None,
-        };
+        let (max_file_bytes, max_files, min_free_bytes) = (
+            record.max_file_bytes,
+            record.max_files,
+            record.min_free_bytes,
+        );
+        let writer_shared = shared.clone();
         let writer = thread::Builder::new()
             .name("recorder".into())
-            .spawn(move || writer.run())
+            .spawn(move || {
+                let writer = Writer {
+                    dir: PathBuf::from(pattern.dir()),
+                    // Read here, on the writer's thread: the disk may be slow.
+                    made: MadeList::open(&pattern),
+                    pattern,
+                    max_file_bytes,
+                    max_files,
+                    min_free_bytes,
+                    shared: writer_shared,
+                    file: None,
+                    name: None,
+                    size: 0,
+                    trouble: None,
+                };
+                writer.run();
+            })
             .map_err(|e| log::error(&format_args!("recording: cannot start the writer: {e}")))
             .ok();
         Recorder {
@@ -251,6 +264,9 @@ enum Trouble {
 struct Writer {
     pattern: FilePattern,
     dir: PathBuf,
+    /// The recordings this writer (and earlier runs) created: the only files it may
+    /// remove.
+    made: MadeList,
     max_file_bytes: u64,
     max_files: u32,
     min_free_bytes: u64,
@@ -404,7 +420,7 @@ impl Writer {
         if free >= self.min_free_bytes.saturating_add(needed) {
             return true;
         }
-        let files = self.recordings();
+        let files = self.made.recordings();
         let plan = rotation::make_room(
             &files,
             free,
@@ -412,7 +428,10 @@ impl Writer {
             self.min_free_bytes,
             self.name.as_deref(),
         );
-        self.remove(&plan.remove, "to keep min_free_bytes free");
+        if !plan.remove.is_empty() {
+            self.remove(&plan.remove, "to keep min_free_bytes free");
+            self.made.save();
+        }
         plan.enough
     }
 
@@ -465,6 +484,7 @@ impl Writer {
             );
             return;
         };
+        self.made.add(&name, &file);
         self.file = Some(file);
         self.name = Some(name);
         Counters::add(&self.shared.counters.files, 1);
@@ -473,48 +493,29 @@ impl Writer {
             .current
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = Some(self.path_text());
-        let files = self.recordings();
+        let files = self.made.recordings();
         let excess = rotation::over_count(&files, self.max_files, self.name.as_deref());
         self.remove(&excess, "beyond max_files");
+        self.made.save();
     }
 
-    /// The recordings of the pattern in the directory (files only).
-    fn recordings(&self) -> Vec<Existing> {
-        let Ok(entries) = fs::read_dir(&self.dir) else {
-            return Vec::new();
-        };
-        entries
-            .flatten()
-            .filter_map(|entry| {
-                let name = entry.file_name().into_string().ok()?;
-                let suffix = self.pattern.suffix_of(&name)?;
-                let meta = entry.metadata().ok().filter(fs::Metadata::is_file)?;
-                let modified = meta
-                    .modified()
-                    .ok()
-                    .and_then(|t| t.duration_since(UNIX_EPOCH).ok())
-                    .map_or(0, |d| d.as_nanos());
-                Some(Existing {
-                    name,
-                    modified,
-                    suffix,
-                    bytes: meta.len(),
-                })
-            })
-            .collect()
-    }
-
-    /// Removes the recordings `names` (`why` goes in the message if it fails).
+    /// Removes the recordings `names` and takes them off the list (`why` goes in the
+    /// message if it fails).
     fn remove(&mut self, names: &[String], why: &str) {
         for name in names {
             let path = self.dir.join(name);
             match fs::remove_file(&path) {
                 Ok(()) => Counters::add(&self.shared.counters.removed, 1),
-                Err(e) => log::warn(&format_args!(
-                    "recording: cannot remove {} ({why}): {e}",
-                    path.display()
-                )),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => {
+                    log::warn(&format_args!(
+                        "recording: cannot remove {} ({why}): {e}",
+                        path.display()
+                    ));
+                    continue;
+                }
             }
+            self.made.forget(name);
         }
     }
 

@@ -8,6 +8,7 @@
 //!   when the process is privileged;
 //! - `localtime_r`: the local calendar time for log lines and recording file names;
 //! - `statvfs`: the free space of the disk recordings are written to;
+//! - `geteuid`: the user whose files the recorder may remove;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
 //! - turning a configured serial port into a non-blocking file for the event loop, and
@@ -423,6 +424,13 @@ pub fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
     #[allow(clippy::useless_conversion)] // the field types differ between targets
     let (blocks, size) = (u64::from(st.f_bavail), u64::from(st.f_frsize));
     Ok(blocks.saturating_mul(size))
+}
+
+/// The user the process acts as (`geteuid`): the owner of the files it creates, and
+/// the only owner of recordings and of their list that the recorder believes.
+pub fn effective_uid() -> u32 {
+    // SAFETY: geteuid(2) takes no arguments, touches no memory and always succeeds.
+    unsafe { libc::geteuid() }
 }
 
 /// A monotonic one-shot timer as a file descriptor that becomes readable when it fires.

@@ -1,6 +1,7 @@
 //! Recording what flows, sans-IO: which frames are recorded ([`filter`]), the core's
 //! bounded tap of them ([`tap`]), file names from the `record { path …; }` pattern
-//! ([`pattern`]), which old recordings go when files are rotated or the disk fills
+//! ([`pattern`]), the list of the recordings the router created, the only files it may
+//! remove ([`manifest`]), which of them go when files are rotated or the disk fills
 //! ([`rotation`]) and the counters ([`stats`]). The writer thread that puts records on
 //! the disk is `src/io/recorder.rs`.
 //!
@@ -8,12 +9,14 @@
 //! microseconds since the UNIX epoch) followed by the frame exactly as received.
 
 pub mod filter;
+pub mod manifest;
 pub mod pattern;
 pub mod rotation;
 pub mod stats;
 pub mod tap;
 
 pub use filter::RecordFilter;
+pub use manifest::Manifest;
 pub use pattern::{FilePattern, LocalTime, PatternError};
 pub use stats::RecorderStats;
 pub use tap::Tap;

@@ -2,10 +2,10 @@
 //! directives `%Y %m %d %H %M %S` (the calendar time a file is opened at) and `%%`.
 //!
 //! A file is never overwritten: when the name is taken, `-1`, `-2`, … is added before
-//! the extension (`2024-05-01_10-00-00-1.tlog`). Which files in the directory are
-//! recordings of this pattern (and may be removed by rotation) is told by
-//! [`FilePattern::matches`]: the pattern with digits for the directives, with or without
-//! such a suffix.
+//! the extension (`2024-05-01_10-00-00-1.tlog`). Which names the pattern makes is told
+//! by [`FilePattern::matches`]: the pattern with digits for the directives, with or
+//! without such a suffix. A matching name alone never makes a file a recording: only
+//! the files the router created (its [`manifest`](super::manifest)) are ever removed.
 
 use std::fmt::Write;
 use std::ops::Range;
@@ -63,8 +63,17 @@ enum Field {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FilePattern {
     dir: String,
+    /// The file name part as written (with its directives).
+    name_pattern: String,
     pieces: Vec<Piece>,
 }
+
+/// The largest suffix tried when a file name is taken (`-1` … `-9999`).
+pub const MAX_SUFFIX: u32 = 9999;
+
+/// The longest file name (in bytes) the file systems mavtables runs on allow (Linux's
+/// `NAME_MAX`).
+pub const NAME_MAX: usize = 255;
 
 const NOTE: &str = "the file name may use %Y %m %d %H %M %S (the time the file is opened) and %% (a '%'), e.g. /var/log/mavtables/%Y-%m-%d_%H-%M-%S.tlog";
 
@@ -151,6 +160,7 @@ impl FilePattern {
         }
         Ok(FilePattern {
             dir: dir.to_string(),
+            name_pattern: name.to_string(),
             pieces,
         })
     }
@@ -158,6 +168,31 @@ impl FilePattern {
     /// The directory the recordings are written in (`.` for a bare file name).
     pub fn dir(&self) -> &str {
         &self.dir
+    }
+
+    /// The file name part as written, with its directives (`%Y-%m-%d_%H-%M-%S.tlog`).
+    pub fn name_pattern(&self) -> &str {
+        &self.name_pattern
+    }
+
+    /// The one name the pattern makes before any suffix, when it has no directives
+    /// (`important.conf`); `None` when its names change with the time.
+    pub fn fixed_name(&self) -> Option<String> {
+        let timed = self.pieces.iter().any(|p| matches!(p, Piece::Field { .. }));
+        (!timed).then(|| self.name(&LocalTime::default(), 0))
+    }
+
+    /// The length in bytes of the longest name the pattern makes, with the suffix
+    /// `-MAX_SUFFIX`.
+    pub fn longest_name(&self) -> usize {
+        self.pieces
+            .iter()
+            .map(|piece| match piece {
+                Piece::Text(t) => t.len(),
+                Piece::Field { width, .. } => *width,
+                Piece::Suffix => 1 + MAX_SUFFIX.to_string().len(),
+            })
+            .sum()
     }
 
     /// The file name for a file opened at `time`, with suffix `-n` (none for 0).
@@ -290,5 +325,20 @@ mod tests {
         assert_eq!(e.at, 7..8);
         let e = FilePattern::parse("/var/").expect_err("no name");
         assert_eq!(e.at, 4..5);
+    }
+
+    #[test]
+    fn a_pattern_knows_its_fixed_name_and_longest_name() {
+        let p = FilePattern::parse("/r/%Y-%m-%d_%H-%M-%S.tlog").expect("ok");
+        assert_eq!(p.name_pattern(), "%Y-%m-%d_%H-%M-%S.tlog");
+        assert_eq!(p.fixed_name(), None);
+        assert_eq!(p.longest_name(), p.name(&T, MAX_SUFFIX).len());
+        let p = FilePattern::parse("/etc/important.conf").expect("ok");
+        assert_eq!(p.fixed_name().as_deref(), Some("important.conf"));
+        assert_eq!(p.longest_name(), "important-9999.conf".len());
+        let p = FilePattern::parse("100%%").expect("ok");
+        assert_eq!(p.name_pattern(), "100%%");
+        assert_eq!(p.fixed_name().as_deref(), Some("100%"));
+        assert_eq!(p.longest_name(), "100%-9999".len());
     }
 }

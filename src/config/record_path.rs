@@ -1,0 +1,99 @@
+//! Checking the `record` block's path against the disk when the router starts (and for
+//! `--check`), like [`read_keys`](super::read_keys): a path without `%` fields always
+//! names the same file, and when a file mavtables did not record is already there, the
+//! path most likely names something else (the recorder would leave it alone and write
+//! beside it under a suffixed name, but saying so now is better).
+
+use std::path::Path;
+
+use super::ast::{Item, RecordSetting};
+use super::{Config, Diagnostic, Span, parse};
+use crate::io::manifest;
+use crate::recording::FilePattern;
+
+/// The directives [`check_record_path`] suggests adding to a fixed name.
+const TIME: &str = "_%Y-%m-%d_%H-%M-%S";
+
+/// Refuses a `record` path without `%` fields whose file exists and is not a recording
+/// this router made (by its list of recordings): one located error at the path. `src`
+/// is the source `config` was loaded from.
+pub fn check_record_path(config: &Config, src: &str) -> Result<(), Vec<Diagnostic>> {
+    let Some(path) = config.record.as_ref().and_then(|r| r.path.as_deref()) else {
+        return Ok(());
+    };
+    let Ok(pattern) = FilePattern::parse(path) else {
+        return Ok(());
+    };
+    let Some(name) = pattern.fixed_name() else {
+        return Ok(());
+    };
+    let file = Path::new(pattern.dir()).join(&name);
+    if file.symlink_metadata().is_err() {
+        // Nothing there (or nothing to be seen: the recorder says so when it starts).
+        return Ok(());
+    }
+    let unread = match manifest::created(&pattern, &name) {
+        Ok(true) => return Ok(()),
+        Ok(false) => None,
+        Err(why) => Some(why),
+    };
+    let at = path_span(src)
+        .filter(|s| src.get(s.start..s.end) == Some(path))
+        .unwrap_or_default();
+    let mut d = Diagnostic::new(
+        at,
+        format!(
+            "{} exists and was not written by mavtables",
+            file.display()
+        ),
+    )
+    .with_note(format!(
+        "a recording never replaces a file, and only recordings mavtables made are removed; to record to a new file each time, add the time to the name: path {};",
+        with_time(path)
+    ));
+    if let Some(why) = unread {
+        d = d.with_note(format!(
+            "{} was not read as the list of recordings mavtables made: {why}",
+            manifest::list_path(&pattern).display()
+        ));
+    }
+    Err(vec![d])
+}
+
+/// `path` with [`TIME`] before the extension of its file name.
+fn with_time(path: &str) -> String {
+    let name_at = path.rfind('/').map_or(0, |i| i + 1);
+    let at = match path[name_at..].rfind('.') {
+        Some(dot) if dot > 0 => name_at + dot,
+        _ => path.len(),
+    };
+    format!("{}{TIME}{}", &path[..at], &path[at..])
+}
+
+/// The value of the last `path` statement of the `record` block of `src`.
+fn path_span(src: &str) -> Option<Span> {
+    let ast = parse(src).ok()?;
+    ast.items.iter().find_map(|item| match item {
+        Item::Record { settings, .. } => settings.iter().rev().find_map(|s| match s {
+            RecordSetting::Path(span) => Some(*span),
+            _ => None,
+        }),
+        _ => None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_time_goes_before_the_extension() {
+        assert_eq!(
+            with_time("/etc/important.conf"),
+            "/etc/important_%Y-%m-%d_%H-%M-%S.conf"
+        );
+        assert_eq!(with_time("flight"), "flight_%Y-%m-%d_%H-%M-%S");
+        assert_eq!(with_time("/x.d/.hidden"), "/x.d/.hidden_%Y-%m-%d_%H-%M-%S");
+        assert_eq!(with_time("a.b.tlog"), "a.b_%Y-%m-%d_%H-%M-%S.tlog");
+    }
+}
