@@ -2,8 +2,9 @@
 //! 127.0.0.1, and the recordings read back by pymavlink (`tests/py/tlog_read.py`, what
 //! ground stations use) and by `mavtables inspect`.
 //!
-//! The disk tests mount a 1 MiB tmpfs (they run as root in CI; without the right to
-//! mount they say so and pass) or run the router under a file-size limit (`prlimit`).
+//! The disk tests mount a 1 MiB tmpfs, which needs root: they are `#[ignore]`d for a
+//! plain `cargo test`, `scripts/test` runs them, and without the right to mount they fail
+//! saying so. Others run the router under a file-size limit (`prlimit`).
 
 mod common;
 
@@ -388,25 +389,21 @@ fn records_reach_the_file_within_a_second() {
 struct Tmpfs(PathBuf);
 
 impl Tmpfs {
-    /// Mounts one at `dir`, or says why not (the test then passes, saying it skipped).
-    fn mount(dir: &Path) -> Option<Tmpfs> {
+    /// Mounts one at `dir`; fails the test, saying what it needs, when it cannot.
+    fn mount(dir: &Path) -> Tmpfs {
         fs::create_dir_all(dir).expect("mount point");
         let out = Command::new("mount")
             .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs"])
             .arg(dir)
             .output();
         match out {
-            Ok(o) if o.status.success() => Some(Tmpfs(dir.to_path_buf())),
-            Ok(o) => {
-                eprintln!(
-                    "SKIPPED: cannot mount a tmpfs (the disk tests need root): {}",
-                    String::from_utf8_lossy(&o.stderr).trim()
-                );
-                None
-            }
+            Ok(o) if o.status.success() => Tmpfs(dir.to_path_buf()),
+            Ok(o) => panic!(
+                "cannot mount a tmpfs ({}): the disk tests need root: run them as root (sudo scripts/test)",
+                String::from_utf8_lossy(&o.stderr).trim()
+            ),
             Err(e) => {
-                eprintln!("SKIPPED: cannot run mount: {e}");
-                None
+                panic!("cannot run mount ({e}): the disk tests need util-linux's mount, as root")
             }
         }
     }
@@ -460,12 +457,11 @@ fn route_through_binary(
 }
 
 #[test]
+#[ignore = "needs root to mount a small tmpfs; scripts/test runs it"]
 fn a_full_disk_drops_records_never_packets() {
     let scratch = Scratch::new("record-full");
     let mnt = scratch.dir.join("disk");
-    let Some(_disk) = Tmpfs::mount(&mnt) else {
-        return;
-    };
+    let _disk = Tmpfs::mount(&mnt);
     fill(&mnt, 8192);
     let port = free_udp_port();
     let config = record_config(port, &mnt, "min_free_bytes 0;");
@@ -540,16 +536,16 @@ struct Before {
 /// A 1 MiB disk holding a recording of an earlier run, grown to `old_bytes` and dated
 /// 2000, and a user's file with a name the pattern makes, dated 1999; recorded to with
 /// `min_free_bytes` while `n` frames are routed: what became of the two, what was sent
-/// and how the router stopped. `None` when no tmpfs can be mounted.
+/// and how the router stopped.
 fn with_old_recording(
     tag: &str,
     old_bytes: usize,
     min_free_bytes: u64,
     n: usize,
-) -> Option<(Before, Vec<String>, Stopped)> {
+) -> (Before, Vec<String>, Stopped) {
     let scratch = Scratch::new(tag);
     let mnt = scratch.dir.join("disk");
-    let _disk = Tmpfs::mount(&mnt)?;
+    let _disk = Tmpfs::mount(&mnt);
     let port = free_udp_port();
     let old = one_run(
         &scratch,
@@ -575,15 +571,13 @@ fn with_old_recording(
         old_kept: old.exists(),
         planted_intact: fs::read(&planted).ok() == Some(bytes),
     };
-    Some((before, sent, stopped))
+    (before, sent, stopped)
 }
 
 #[test]
+#[ignore = "needs root to mount a small tmpfs; scripts/test runs it"]
 fn old_recordings_make_room_for_min_free_bytes_never_other_files() {
-    let Some((before, sent, stopped)) = with_old_recording("record-room", 700_000, 500_000, 50)
-    else {
-        return;
-    };
+    let (before, sent, stopped) = with_old_recording("record-room", 700_000, 500_000, 50);
     assert!(
         !before.old_kept,
         "the old recording was removed to keep 500000 bytes free"
@@ -600,12 +594,9 @@ fn old_recordings_make_room_for_min_free_bytes_never_other_files() {
 }
 
 #[test]
+#[ignore = "needs root to mount a small tmpfs; scripts/test runs it"]
 fn without_min_free_bytes_records_are_dropped_and_old_recordings_kept() {
-    let Some((before, sent, stopped)) =
-        with_old_recording("record-nospace", 10_000, 2_000_000, 100)
-    else {
-        return;
-    };
+    let (before, sent, stopped) = with_old_recording("record-nospace", 10_000, 2_000_000, 100);
     assert!(
         before.old_kept,
         "removing it would not have made room: it stays"
