@@ -34,8 +34,8 @@ impl Diagnostic {
 
     /// Renders the diagnostic against the source it was found in. A line longer than
     /// [`SHOWN_CHARS`] is shown as a window around the position (`…` where it was cut),
-    /// and a message or note that long is cut too, so a pathological file gets a short
-    /// error.
+    /// and a message or note longer than [`TEXT_CHARS`] is cut too, so a pathological
+    /// file gets a short error.
     pub fn render(&self, file: &str, src: &str) -> String {
         let pos = Position::of(src, self.span.start);
         let line_text = pos.line_text(src);
@@ -74,8 +74,11 @@ impl Diagnostic {
     }
 }
 
-/// Longest source line, message or note shown whole, in characters.
+/// Longest source line shown whole, in characters.
 pub const SHOWN_CHARS: usize = 160;
+
+/// Longest message or note shown whole, in characters: room for a few long paths.
+pub const TEXT_CHARS: usize = 1024;
 
 /// Characters of a long line shown before the position.
 const SHOWN_BEFORE: usize = 60;
@@ -110,9 +113,9 @@ fn window(line: &str, at: usize) -> (String, usize) {
     (shown, at_in_shown)
 }
 
-/// `text`, cut to [`SHOWN_CHARS`] characters with `…` if it is longer.
+/// `text`, cut to [`TEXT_CHARS`] characters with `…` if it is longer.
 fn shorten(text: &str) -> std::borrow::Cow<'_, str> {
-    match text.char_indices().nth(SHOWN_CHARS) {
+    match text.char_indices().nth(TEXT_CHARS) {
         None => text.into(),
         Some((cut, _)) => format!("{}{ELLIPSIS}", &text[..cut]).into(),
     }
