@@ -8,6 +8,7 @@
 pub mod ast;
 pub mod claims;
 pub mod diagnostic;
+pub mod file;
 pub mod keys;
 pub mod lexer;
 pub mod lines;
@@ -22,6 +23,7 @@ pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
+pub use file::{FromFile, read_file};
 pub use keys::read_keys;
 pub use lines::LineIndex;
 pub use model::*;

@@ -7,6 +7,7 @@
 //! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
+//! - `notify`: systemd's readiness, reload and watchdog notifications;
 //! - `log`: log lines and messages, written without ever blocking the loop;
 //! - `recorder`: `.tlog` recordings, written by a thread of their own;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
@@ -14,6 +15,7 @@
 
 mod driver;
 mod log;
+mod notify;
 mod recorder;
 mod resolve;
 mod runtime;

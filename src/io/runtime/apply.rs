@@ -1,0 +1,117 @@
+//! Applying a configuration in the event loop: the drivers for the interfaces the core
+//! adds (at start and at a reload), and the reload itself (SIGHUP) — read the file
+//! again, let the core decide what changes ([`Engine::configure`]), then close and open
+//! exactly the sockets it names and restart what it says changed (recording, the
+//! statistics endpoint, the signing state file). A file that does not load changes
+//! nothing.
+//!
+//! [`Engine::configure`]: crate::routing::Engine::configure
+
+use std::io;
+use std::sync::Arc;
+
+use mio::Waker;
+
+use super::super::driver::Driver;
+use super::super::log;
+use super::super::serial::SerialDriver;
+use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
+use super::super::udp::UdpDriver;
+use super::{RECORDER_FINISH, Runtime, open_state_file, start_recording, start_stats};
+use crate::config::{self, FromFile, Interface};
+use crate::routing::{InterfaceId, Request, Timestamp};
+
+/// A driver for the core's new interface `id`, of block `iface`. A server binds now
+/// (a port in use is an error naming the block); clients and serial ports open when the
+/// core asks.
+pub(super) fn driver_for(
+    iface: &Interface,
+    id: InterfaceId,
+    waker: &Arc<Waker>,
+) -> io::Result<Box<dyn Driver>> {
+    Ok(match iface {
+        Interface::Serial(s) => Box::new(SerialDriver::new(s, id)),
+        Interface::Udp(u) => Box::new(UdpDriver::new(u, id, waker.clone())?),
+        Interface::Tcp(t) if t.connect.is_none() => Box::new(TcpListenerDriver::bind(t, id)?),
+        Interface::Tcp(t) => Box::new(TcpStreamDriver::client(t, id, waker.clone())),
+    })
+}
+
+impl Runtime {
+    /// Reads the configuration file again and applies it (SIGHUP), telling systemd
+    /// around it. A file that cannot be read or does not load is reported, located, and
+    /// the running configuration stays exactly as it was.
+    pub(super) fn reload(&mut self, now: Timestamp) {
+        if let Some(notifier) = &self.notifier {
+            notifier.reloading();
+        }
+        match &self.source {
+            None => log::warn(
+                &"SIGHUP: the configuration came from command-line endpoints; there is no file to read again",
+            ),
+            Some(path) => match config::read_file(path) {
+                Ok(file) => self.apply(file, now),
+                Err(why) => log::stderr_text(&format!(
+                    "error: configuration not reloaded, the running one is kept:\n{why}"
+                )),
+            },
+        }
+        if let Some(notifier) = &self.notifier {
+            notifier.ready();
+        }
+    }
+
+    /// Runs `file` from now on: the core keeps what did not change and names what the
+    /// loop closes and opens.
+    fn apply(&mut self, file: FromFile, now: Timestamp) {
+        for w in &file.warnings {
+            log::warn(w);
+        }
+        let config = &file.config;
+        let done = self.engine.configure(config, &file.keys, now);
+        for request in &done.requests {
+            match request {
+                Request::Close(id) => self.remove(*id),
+                Request::Open(id, iface) => match driver_for(iface, *id, &self.waker) {
+                    Ok(driver) => self.add(driver, false),
+                    Err(e) => {
+                        log::error(&format_args!(
+                            "reload: cannot open {e}; it stays closed until a reload opens it"
+                        ));
+                        self.engine.unconfigure(*id);
+                    }
+                },
+            }
+        }
+        for line in &done.details {
+            log::stderr_text(&format!("reload: {line}\n"));
+        }
+        if done.signing_state_changed {
+            if let Some(file) = self.state_file.take() {
+                file.finish(self.engine.signing_state(true).as_ref());
+            }
+            self.state_file = open_state_file(config, &mut self.engine);
+            log::stderr_text("reload: signing state file reopened\n");
+        }
+        if done.record_changed {
+            self.record();
+            if let Some(mut recorder) = self.recorder.take() {
+                recorder.finish(RECORDER_FINISH);
+            }
+            self.engine.stop_recording();
+            self.recorder = start_recording(config, &mut self.engine);
+            log::stderr_text("reload: recording restarted\n");
+        }
+        if done.stats_changed {
+            // The old endpoint lets its port go before the new one takes it.
+            self.stats = None;
+            self.stats = start_stats(config).unwrap_or_else(|e| {
+                log::error(&e);
+                None
+            });
+            log::stderr_text("reload: statistics endpoint restarted\n");
+        }
+        self.handle_notices(now);
+        log::stderr_text(&format!("configuration reloaded: {done}\n"));
+    }
+}
