@@ -7,7 +7,7 @@ use std::fmt;
 
 use super::{Engine, Notice};
 use crate::config::{Config, Interface, PeerLimits};
-use crate::filter::{FilterCounts, RuleCounts};
+use crate::filter::FilterCounts;
 use crate::routing::interface::{InterfaceId, Kind, pacer_for};
 use crate::routing::reload::{self, Fate, InPlace, Keyed, RulePlan};
 use crate::routing::snapshot::RuleBook;
@@ -389,7 +389,7 @@ fn dropped_text(dropped: u64) -> String {
 fn carried_counts(old: &FilterCounts, rules: &RulePlan) -> FilterCounts {
     let rule = |o: Option<usize>| {
         o.and_then(|o| old.rules.get(o).copied())
-            .unwrap_or(RuleCounts::default())
+            .unwrap_or_default()
     };
     FilterCounts {
         rules: rules.carried.iter().map(|&o| rule(o)).collect(),
@@ -403,5 +403,104 @@ fn carried_counts(old: &FilterCounts, rules: &RulePlan) -> FilterCounts {
         } else {
             0
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::net::SocketAddr;
+
+    use super::*;
+    use crate::config::load;
+    use crate::wire::encode::{Header, encode_v2};
+
+    const T0: Timestamp = Timestamp::ZERO;
+
+    fn frame(id: u32, system: u8) -> Vec<u8> {
+        let header = Header {
+            seq: 0,
+            system,
+            component: 1,
+        };
+        let mut out = Vec::new();
+        encode_v2(header, id, &[7; 9], None, &mut out).expect("encode");
+        out
+    }
+
+    fn peer(port: u16) -> SocketAddr {
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    fn opened(done: &Reconfigured) -> Vec<InterfaceId> {
+        (done.requests.iter())
+            .filter_map(|r| match r {
+                Request::Open(id, _) => Some(*id),
+                Request::Close(_) => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_reload_keeps_what_did_not_change_and_drops_what_went() {
+        let old = load(
+            "udp { port 14550; }\nudp { port 14551; }\n\
+             chain default { reject if PING; accept; }\n",
+        )
+        .expect("config")
+        .config;
+        let mut e = Engine::new(&old, RouterOptions::default());
+        let ids = opened(&e.configure(&old, &[], T0));
+        let [a, b] = ids[..] else {
+            panic!("two interfaces: {ids:?}")
+        };
+        e.handle_datagram(a, peer(1), &frame(0, 1), T0);
+        e.handle_datagram(b, peer(2), &frame(0, 2), T0); // queued for peer 1, on `a`
+        e.handle_datagram(a, peer(1), &frame(30, 1), T0); // queued for peer 2, on `b`
+        let counts = e.router().filter_counts();
+
+        let new = load(
+            "udp { port 14551; max_bitrate 9600; }\n\
+             chain default { reject if HEARTBEAT; accept; }\n",
+        )
+        .expect("config")
+        .config;
+        let done = e.configure(&new, &[], T0);
+        assert_eq!(done.requests, [Request::Close(a)]);
+        assert_eq!((done.added, done.removed, done.changed), (0, 1, 1));
+        assert_eq!(done.dropped, 1, "the heartbeat queued for peer 1");
+        assert_eq!(
+            done.to_string(),
+            "2 rules (1 changed), +0 interfaces, -1, 1 changed, 1 queued frames dropped"
+        );
+        // `b` kept its link, its learned address and its queue; it is paced now.
+        let link = e.router().links().next().expect("peer 2's link");
+        assert_eq!(link.name(), "127.0.0.1:2");
+        assert!(e.router().peek(link.id()).is_some(), "its queue is kept");
+        assert_eq!(e.interface(b).map(|i| i.pacer.rate()), Some(9600));
+        // `accept` reads the same: its counts go on; the new reject rule starts at 0.
+        let carried = e.router().filter_counts();
+        assert_eq!(carried.rules[1], counts.rules[1]);
+        assert_eq!(carried.rules[0].packets, 0);
+        assert!(counts.rules[1].packets > 0);
+    }
+
+    #[test]
+    fn a_server_passes_its_new_rate_to_its_connections() {
+        let old = load("tcp { port 5760; }\n").expect("config").config;
+        let mut e = Engine::new(&old, RouterOptions::default());
+        let ids = opened(&e.configure(&old, &[], T0));
+        let conn = e.accept(ids[0], peer(9), T0).expect("accepted");
+        let new = load("tcp { port 5760; max_bitrate 4800; }\n")
+            .expect("config")
+            .config;
+        let done = e.configure(&new, &[], T0);
+        assert!(done.requests.is_empty(), "{:?}", done.requests);
+        assert_eq!(e.interface(conn).map(|i| i.pacer.rate()), Some(4800));
+        let later = e.accept(ids[0], peer(10), T0).expect("accepted");
+        assert_eq!(e.interface(later).map(|i| i.pacer.rate()), Some(4800));
+        // Removing the server closes its connections too.
+        let none = load("default_action accept;\n").expect("config").config;
+        let done = e.configure(&none, &[], T0);
+        assert_eq!(done.requests.len(), 3, "{:?}", done.requests);
     }
 }
