@@ -61,6 +61,23 @@ impl Runtime {
         }
     }
 
+    /// Takes what the signing state file saved for the keys a reload added (`new_keys`,
+    /// by fingerprint: say a key used before, taken out of the file and put back), so
+    /// that their streams' last timestamps are known again and no old frame of theirs
+    /// can be replayed. The streams of keys in use are left alone.
+    fn restore_signing_state(&mut self, config: &config::Config, new_keys: &[[u8; 8]]) {
+        let Some(path) = config.signing_state_path(|k| std::env::var(k).ok()) else {
+            return;
+        };
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            return;
+        };
+        if let Ok(mut state) = crate::signing::state::SavedState::parse(&text) {
+            state.streams.retain(|s| new_keys.contains(&s.key));
+            self.engine.restore_signing_state(&state);
+        }
+    }
+
     /// Runs `file` from now on: the core keeps what did not change and names what the
     /// loop closes and opens.
     fn apply(&mut self, file: FromFile, now: Timestamp) {
@@ -92,6 +109,9 @@ impl Runtime {
             }
             self.state_file = open_state_file(config, &mut self.engine);
             log::stderr_text("reload: signing state file reopened\n");
+        }
+        if !done.new_keys.is_empty() && !done.signing_state_changed {
+            self.restore_signing_state(config, &done.new_keys);
         }
         if done.record_changed {
             self.record();

@@ -62,6 +62,9 @@ pub struct Reconfigured {
     pub stats_changed: bool,
     /// Where the signing state is kept changed (or whether there is any).
     pub signing_state_changed: bool,
+    /// Fingerprints of keys no interface had before: the saved signing state may know
+    /// their streams.
+    pub new_keys: Vec<[u8; 8]>,
 }
 
 impl fmt::Display for Reconfigured {
@@ -191,6 +194,13 @@ impl Engine {
             done.requests.push(Request::Open(id, iface.clone()));
             ids[n] = Some(id);
         }
+        let had = |k: &SigningKey| self.configured.iter().any(|c| c.key.as_ref() == Some(k));
+        let mut new_keys: Vec<[u8; 8]> = (keys.iter().flatten())
+            .filter(|k| !had(k))
+            .map(SigningKey::fingerprint)
+            .collect();
+        new_keys.dedup();
+        done.new_keys = new_keys;
         self.configured = (ids.into_iter().enumerate())
             .filter_map(|(n, id)| {
                 Some(Configured {
