@@ -276,7 +276,7 @@ fn a_rule_added_by_reload_applies_to_the_next_packet() {
     assert_eq!(udp_frames(&b, 1, 5 * SECOND), [heartbeat(1)]);
 
     let line = reload(&mut router, &format!("{udp}{accept}"));
-    assert!(line.contains("1 rules (0 changed)"), "{line}");
+    assert!(line.contains("1 rule (0 changed)"), "{line}");
     a.send(&attitude(1, 3)).expect("send");
     assert_eq!(udp_frames(&b, 1, 5 * SECOND), [attitude(1, 3)]);
     router.stop();
@@ -339,6 +339,7 @@ fn interfaces_open_close_and_change_in_place() {
     router.wait_for("new component 3.1 on tcp:127.0.0.1:");
     assert!(!udp_port_bound(b_port));
 
+    let socket_before = udp_inode(a_port);
     // 8,000 bit/s: 25 frames of 40 bytes a second.
     let a_paced = format!("udp {{ port {a_port}; address 127.0.0.1; max_bitrate 8000; }}\n");
     let b = format!("udp {{ port {b_port}; address 127.0.0.1; }}\n");
@@ -363,6 +364,11 @@ fn interfaces_open_close_and_change_in_place() {
         "{details:?}"
     );
 
+    assert_eq!(
+        udp_inode(a_port),
+        socket_before,
+        "the changed interface's socket was reopened"
+    );
     // The removed server's connection is closed, and nobody listens there any more.
     conn.set_read_timeout(Some(5 * SECOND)).expect("timeout");
     let mut buf = [0u8; 512];
@@ -402,6 +408,20 @@ fn interfaces_open_close_and_change_in_place() {
         .filter(|l| l.contains("new component 2.1 "))
         .count();
     assert_eq!(learned, 1, "the receiver was learned again");
+}
+
+/// The inode of the UDP socket bound to `port` (from /proc/net/udp): the same number
+/// before and after means the same socket.
+fn udp_inode(port: u16) -> String {
+    let table = std::fs::read_to_string("/proc/net/udp").expect("/proc/net/udp");
+    let wanted = format!(":{port:04X}");
+    table
+        .lines()
+        .skip(1)
+        .map(|l| l.split_whitespace().collect::<Vec<_>>())
+        .find(|f| f.get(1).is_some_and(|local| local.ends_with(&wanted)))
+        .and_then(|f| f.get(9).map(|s| s.to_string()))
+        .unwrap_or_else(|| panic!("no UDP socket on port {port}"))
 }
 
 /// Starts the router on `config` with `env` added to its environment.

@@ -70,11 +70,17 @@ pub struct Reconfigured {
 impl fmt::Display for Reconfigured {
     /// `12 rules (3 changed), +1 interface, -0, 1 changed`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let plural = if self.added == 1 { "" } else { "s" };
+        let s = |n: usize| if n == 1 { "" } else { "s" };
         write!(
             f,
-            "{} rules ({} changed), +{} interface{plural}, -{}, {} changed",
-            self.rules, self.rules_changed, self.added, self.removed, self.changed
+            "{} rule{} ({} changed), +{} interface{}, -{}, {} changed",
+            self.rules,
+            s(self.rules),
+            self.rules_changed,
+            self.added,
+            s(self.added),
+            self.removed,
+            self.changed
         )?;
         if self.default_changed {
             write!(f, ", default_action changed")?;
