@@ -4,6 +4,8 @@
 //! system and these calls.
 //!
 //! ```text
+//! config:    engine.configure(config, keys, now) → close/open requests    (at start, and
+//!            at every reload: only what changed is closed or opened; see [`Reconfigured`])
 //! start:     ifc = engine.add_datagram_interface(label, max_bitrate)       (a UDP socket)
 //!            ifc = engine.add_stream_interface(device, …, now)             (a serial port)
 //! input:     engine.handle_datagram(ifc, peer, bytes, now)    every datagram received
