@@ -2,7 +2,7 @@
 
 use std::process::ExitCode;
 
-use mavtables::cli::{Outcome, run};
+use mavtables::cli::{ENDPOINTS_SOURCE, Outcome, run};
 
 fn main() -> ExitCode {
     let args = std::env::args_os()
@@ -14,7 +14,11 @@ fn main() -> ExitCode {
             config,
             keys,
             options,
-            ..
-        } => ExitCode::from(mavtables::io::run(&config, &keys, options.loglevel)),
+            path,
+        } => {
+            // SIGHUP reads the file again; endpoints have none.
+            let source = (path != ENDPOINTS_SOURCE).then_some(path.as_str());
+            ExitCode::from(mavtables::io::run(&config, &keys, options.loglevel, source))
+        }
     }
 }

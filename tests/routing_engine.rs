@@ -225,9 +225,9 @@ fn held_back_bytes_on_a_serial_line_wait_one_frame_time_more() {
 #[test]
 fn held_back_bytes_on_tcp_wait_for_the_rest_of_their_frame() {
     let mut e = engine(ACCEPT);
-    let server = e.add_listener("tcp 127.0.0.1:5760".into(), limits(8, &[]));
+    let server = e.add_listener("tcp 127.0.0.1:5760".into(), limits(8, &[]), 0);
     let accepted = e
-        .accept(server, peer(40000), 0, Timestamp::ZERO)
+        .accept(server, peer(40000), Timestamp::ZERO)
         .expect("accepted");
     let client = e.add_stream_client("tcp 127.0.0.1:5761".into(), "tcp:x", 0, Timestamp::ZERO);
     e.handle_timeout(Timestamp::ZERO);
@@ -379,13 +379,13 @@ fn limits(max_peers: usize, allow: &[&str]) -> mavtables::config::PeerLimits {
 #[test]
 fn accepted_connections_are_links_until_they_close_within_the_servers_limits() {
     let mut e = engine(ACCEPT);
-    let server = e.add_listener("tcp test".into(), limits(2, &["127.0.0.0/8"]));
+    let server = e.add_listener("tcp test".into(), limits(2, &["127.0.0.0/8"]), 0);
     let now = Timestamp::ZERO;
-    let a = e.accept(server, peer(1), 0, now).expect("first");
-    let b = e.accept(server, peer(2), 0, now).expect("second");
-    assert!(e.accept(server, peer(3), 0, now).is_none(), "max_peers 2");
+    let a = e.accept(server, peer(1), now).expect("first");
+    let b = e.accept(server, peer(2), now).expect("second");
+    assert!(e.accept(server, peer(3), now).is_none(), "max_peers 2");
     let outside = SocketAddr::from(([10, 0, 0, 1], 9));
-    assert!(e.accept(server, outside, 0, now).is_none(), "not allowed");
+    assert!(e.accept(server, outside, now).is_none(), "not allowed");
     let said = notices(&mut e);
     let names: Vec<&str> = said
         .iter()
@@ -422,7 +422,7 @@ fn accepted_connections_are_links_until_they_close_within_the_servers_limits() {
             .any(|n| matches!(n, Notice::LinkRemoved { name, .. } if name == "tcp:127.0.0.1:1"))
     );
     assert_eq!(e.router().links().count(), 1);
-    assert!(e.accept(server, peer(4), 0, now).is_some());
+    assert!(e.accept(server, peer(4), now).is_some());
     // The closed connection's frames are still counted, on the server's line.
     assert!(
         e.report().contains("  tcp test: 2 frames,"),

@@ -252,11 +252,11 @@ fn frames_leaving_a_keyed_interface_are_signed_unless_signed_or_v1() {
 fn accepted_connections_take_the_servers_key() {
     let config = config::load(ACCEPT_ALL).expect("config").config;
     let mut e = Engine::new(&config, RouterOptions::default());
-    let server = e.add_listener("tcp keyed".into(), Default::default());
+    let server = e.add_listener("tcp keyed".into(), Default::default(), 0);
     e.set_signing(server, SigningKey::from_bytes(KEY), false, 0);
     e.set_wall_clock(Timestamp::ZERO, WALL);
     let conn = e
-        .accept(server, peer(9), 0, Timestamp::ZERO)
+        .accept(server, peer(9), Timestamp::ZERO)
         .expect("accepted");
     e.handle_stream(conn, &frame("HEARTBEAT", "1.1", None), Timestamp::ZERO);
     e.handle_stream(conn, &signed("HEARTBEAT", "1.1", WALL), Timestamp::ZERO);

@@ -1,7 +1,7 @@
 //! Everything the binary does before the router starts.
 
 use super::{Options, find_config, help, parse, version};
-use crate::config::{self, Config, StateFileError, render_errors};
+use crate::config::{self, Config};
 use crate::signing::SigningKey;
 use std::io::Write;
 use std::path::Path;
@@ -63,11 +63,11 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
     let Some(path) = found else {
         return fail(err, "mavtables could not locate a configuration file");
     };
-    let src = match config::read_source(Path::new(&path)) {
-        Ok(src) => src,
-        Err(e) => return fail(err, &format!("configuration file {path} {e}")),
-    };
     if options.ast {
+        let src = match config::read_source(Path::new(&path)) {
+            Ok(src) => src,
+            Err(e) => return fail(err, &format!("configuration file {path} {e}")),
+        };
         return match config::parse(&src) {
             Ok(ast) => {
                 let _ = out.write_all(config::print_ast(&ast, &path).as_bytes());
@@ -79,49 +79,23 @@ pub fn run(args: Vec<String>, out: &mut dyn Write, err: &mut dyn Write) -> Outco
             }
         };
     }
-    let loaded = match config::load(&src) {
-        Ok(l) => l,
-        Err(errors) => {
-            let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
+    let file = match config::read_file(&path) {
+        Ok(file) => file,
+        Err(text) => {
+            let _ = err.write_all(text.as_bytes());
             return Outcome::Exit(1);
         }
     };
-    for w in &loaded.warnings {
-        let _ = writeln!(err, "warning: {path}: {w}");
-    }
-    // Keys are read for --check too, so a deploy script learns of an unreadable or
-    // unprotected key before the service starts; nothing of a key is ever printed. The
-    // signing state file is checked with them: a device, FIFO or huge file there is
-    // refused now rather than read, or later renamed over.
-    let (keys, mut errors) = match config::read_keys(&loaded.config, &src) {
-        Ok(keys) => (keys, Vec::new()),
-        Err(errors) => (Vec::new(), errors),
-    };
-    let mut unlocated = None;
-    match config::check_signing_state(&loaded.config, &src, |k| std::env::var(k).ok()) {
-        Ok(()) => {}
-        Err(StateFileError::Located(d)) => errors.push(d),
-        Err(StateFileError::Default(message)) => unlocated = Some(message),
-    }
-    // The recording path too: a fixed file name that names a file mavtables did not
-    // write is refused before anything runs.
-    if let Err(more) = config::check_record_path(&loaded.config, &src) {
-        errors.extend(more);
-    }
-    if !errors.is_empty() || unlocated.is_some() {
-        let _ = err.write_all(render_errors(&path, &src, &errors).as_bytes());
-        if let Some(message) = unlocated {
-            let _ = writeln!(err, "error: {message}");
-        }
-        return Outcome::Exit(1);
+    for w in &file.warnings {
+        let _ = writeln!(err, "warning: {w}");
     }
     if options.check {
         let _ = writeln!(out, "{path}: configuration is valid");
         return Outcome::Exit(0);
     }
     Outcome::Run {
-        config: loaded.config,
-        keys,
+        config: file.config,
+        keys: file.keys,
         path,
         options,
     }

@@ -10,6 +10,7 @@
 pub mod ast;
 pub mod claims;
 pub mod diagnostic;
+pub mod file;
 pub mod keys;
 pub mod lexer;
 pub mod lines;
@@ -25,6 +26,7 @@ pub mod stats;
 pub mod suggest;
 
 pub use diagnostic::{Diagnostic, Position};
+pub use file::{FromFile, read_file};
 pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::*;

@@ -1,7 +1,7 @@
 //! The meaning of a configuration: typed, validated values the router runs from.
 
 use crate::address::{Address, Subnet};
-use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
 pub use super::net::{Host, IpRange, Remote};
@@ -193,6 +193,15 @@ impl UdpInterface {
     pub fn local_address(&self) -> IpAddr {
         local_address(self.address, self.connect.as_ref())
     }
+
+    /// How messages and counters name it: `udp ADDRESS:PORT` for a server, `udp connect
+    /// HOST:PORT` for a client.
+    pub fn label(&self) -> String {
+        match &self.connect {
+            None => format!("udp {}", SocketAddr::new(self.local_address(), self.port)),
+            Some(remote) => format!("udp connect {remote}"),
+        }
+    }
 }
 
 /// A `tcp { }` block with its defaults filled in: a server (no `connect`) where every
@@ -221,6 +230,15 @@ impl TcpInterface {
     /// The address to bind: `address`, else every address of the peer's family.
     pub fn local_address(&self) -> IpAddr {
         local_address(self.address, self.connect.as_ref())
+    }
+
+    /// How messages and counters name it: `tcp ADDRESS:PORT` for a server, `tcp connect
+    /// HOST:PORT` for a client.
+    pub fn label(&self) -> String {
+        match &self.connect {
+            None => format!("tcp {}", SocketAddr::new(self.local_address(), self.port)),
+            Some(remote) => format!("tcp connect {remote}"),
+        }
     }
 }
 

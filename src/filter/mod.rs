@@ -132,6 +132,12 @@ impl Filter {
         self.traces.rule_counts(self.evaluator.rule_count())
     }
 
+    /// Goes on from `counts` (by this filter's flat rule numbers): what a reload carried
+    /// over from the filter this one replaces is part of [`Filter::counts`] from now on.
+    pub fn carry_counts(&mut self, counts: &FilterCounts) {
+        self.traces.carry(counts);
+    }
+
     /// Hits and misses of the memo so far.
     pub fn cache_stats(&self) -> CacheStats {
         self.cache.stats()

@@ -96,6 +96,22 @@ impl Traces {
         add(d, matched, decider, 1, len as u64);
     }
 
+    /// Counts `base` as if this table had counted it (the counts a reload carries over
+    /// from the filter it replaces).
+    pub fn carry(&mut self, base: &FilterCounts) {
+        let d = &mut self.direct;
+        if d.rules.len() < base.rules.len() {
+            d.rules.resize(base.rules.len(), RuleCounts::default());
+        }
+        for (r, b) in d.rules.iter_mut().zip(&base.rules) {
+            r.packets += b.packets;
+            r.bytes += b.bytes;
+            r.decided += b.decided;
+        }
+        d.default_packets += base.default_packets;
+        d.default_bytes += base.default_bytes;
+    }
+
     /// Per-rule totals for `rule_count` rules.
     pub fn rule_counts(&self, rule_count: usize) -> FilterCounts {
         let mut c = FilterCounts {

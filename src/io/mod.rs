@@ -7,6 +7,7 @@
 //! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
+//! - `notify`: systemd's readiness, reload and watchdog notifications;
 //! - `log`: log lines and messages, written without ever blocking the loop;
 //! - `recorder`: `.tlog` recordings, written by a thread of their own; [`manifest`]: the
 //!   file listing the recordings it created (the only ones it removes);
@@ -16,6 +17,7 @@
 mod driver;
 mod log;
 pub mod manifest;
+mod notify;
 mod recorder;
 mod resolve;
 mod runtime;

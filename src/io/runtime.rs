@@ -1,6 +1,8 @@
 //! The event loop: builds the core and one driver per interface from the configuration,
 //! then waits → reads → core → sends → arms the one timer, until SIGINT or SIGTERM; then
-//! flushes what is queued (for at most a second) and prints the counters.
+//! flushes what is queued (for at most a second) and prints the counters. SIGHUP reads
+//! the configuration file again and applies it between two turns ([`apply`]); under
+//! systemd the loop tells it so, and feeds its watchdog ([`super::notify`]).
 //!
 //! One thread, one `epoll` (through `mio`): descriptors are non-blocking and
 //! edge-triggered; every driver lives in one slab whose keys are the poll tokens; a
@@ -14,23 +16,23 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token, Waker};
-use signal_hook::consts::{SIGINT, SIGTERM, SIGUSR1, SIGXFSZ};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1, SIGXFSZ};
 use signal_hook_mio::v1_0::Signals;
 use slab::Slab;
 
+mod apply;
+
 use super::driver::{Driver, Progress};
 use super::log::{self, Logger};
+use super::notify::Notifier;
 use super::recorder::{self, Recorder};
-use super::serial::SerialDriver;
 use super::state_file::StateFile;
 use super::stats_server::StatsServer;
 use super::sys::TimerFd;
-use super::tcp::{self, TcpListenerDriver, TcpStreamDriver};
-use super::udp::UdpDriver;
-use crate::config::{Config, Interface};
+use crate::config::Config;
 use crate::dialect::DIALECT_NAME;
 use crate::recording::{RecordFilter, RecorderStats};
-use crate::routing::{Engine, InterfaceId, Notice, RouterOptions, Timestamp};
+use crate::routing::{Engine, InterfaceId, Notice, Request, RouterOptions, Timestamp};
 use crate::signing::SigningKey;
 use crate::signing::clock::units_from_unix;
 use crate::signing::state::SAVE_INTERVAL_SECS;
@@ -87,6 +89,14 @@ struct Runtime {
     stats: Option<StatsServer>,
     /// When the next statistics snapshot is due.
     next_stats: Timestamp,
+    /// Rung by look-ups of host names; drivers of clients added by a reload get it too.
+    waker: Arc<Waker>,
+    /// The configuration file SIGHUP reads again (None: command-line endpoints).
+    source: Option<String>,
+    /// systemd's notification socket, when it started the router.
+    notifier: Option<Notifier>,
+    /// When the watchdog is fed next (when systemd asked for one).
+    next_watchdog: Option<Timestamp>,
 }
 
 impl Runtime {
@@ -319,9 +329,28 @@ impl Runtime {
         }
     }
 
-    /// Arms the timer for the core's next deadline.
+    /// Feeds systemd's watchdog when it is due (at half its interval): from the loop's
+    /// own turn, so a loop that is stuck is restarted.
+    fn feed_watchdog(&mut self, now: Timestamp) {
+        let (Some(notifier), Some(due)) = (&self.notifier, self.next_watchdog) else {
+            return;
+        };
+        if now < due {
+            return;
+        }
+        notifier.watchdog();
+        let interval = notifier
+            .watchdog_interval()
+            .unwrap_or(Duration::from_secs(1));
+        self.next_watchdog = Some(now + interval);
+    }
+
+    /// Arms the timer for the core's next deadline (or the watchdog's, if earlier).
     fn arm_timer(&mut self, now: Timestamp) {
-        let due = self.engine.poll_timeout();
+        let mut due = self.engine.poll_timeout();
+        if let Some(watchdog) = self.next_watchdog {
+            due = due.min(watchdog);
+        }
         if self.timer_armed != Some(due) {
             self.timer_armed = Some(due);
             if let Err(e) = self.timer.set(Some(due.saturating_since(now))) {
@@ -340,6 +369,7 @@ impl Runtime {
         let mut events = Events::with_capacity(256);
         let mut stop_by: Option<Timestamp> = None;
         let now = self.now();
+        self.feed_watchdog(now);
         self.engine.handle_timeout(now);
         self.handle_notices(now);
         self.publish_stats(now);
@@ -359,14 +389,20 @@ impl Runtime {
                 return Err(e);
             }
             let now = self.now();
+            let mut reload = false;
             for event in events.iter() {
                 match event.token() {
                     SIGNALS => {
                         for signal in self.signals.pending() {
                             if signal == SIGUSR1 {
                                 log::stderr_text(&self.report());
+                            } else if signal == SIGHUP {
+                                reload = true;
                             } else if stop_by.is_none() {
                                 stop_by = Some(now + SHUTDOWN_FLUSH);
+                                if let Some(notifier) = &self.notifier {
+                                    notifier.stopping();
+                                }
                             }
                         }
                     }
@@ -386,6 +422,11 @@ impl Runtime {
                     }
                 }
             }
+            if reload && stop_by.is_none() {
+                // Between two turns: nothing is half-routed, and what is read next is
+                // judged by the new rules only.
+                self.reload(now);
+            }
             if stop_by.is_none() {
                 for key in 0..self.slots.capacity() {
                     if self.slots.get(key).is_some_and(|s| s.ready) {
@@ -394,6 +435,7 @@ impl Runtime {
                 }
             }
             self.keep_signing_state(now);
+            self.feed_watchdog(now);
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
@@ -415,12 +457,16 @@ impl Runtime {
 }
 
 /// Runs the router for `config`, with `keys` (the signing key of each of its interfaces,
-/// in order) and log level `loglevel`, until SIGINT or SIGTERM.
+/// in order) and log level `loglevel`, until SIGINT or SIGTERM; SIGHUP reads `source`
+/// (the configuration file `config` came from; `None` for command-line endpoints) again.
 /// Returns the process exit status: 0 after a clean shutdown, 1 if it could not start
 /// (a UDP port that cannot be bound; serial devices are retried instead).
-pub fn run(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> u8 {
-    let status = match start(config, keys, loglevel) {
+pub fn run(config: &Config, keys: &[Option<SigningKey>], loglevel: u8, source: Option<&str>) -> u8 {
+    let status = match start(config, keys, loglevel, source) {
         Ok(mut rt) => {
+            if let Some(notifier) = &rt.notifier {
+                notifier.ready();
+            }
             let result = rt.run();
             rt.save_signing_state_at_exit();
             rt.finish_recording();
@@ -487,19 +533,25 @@ fn wall_clock() -> u64 {
         .map_or(0, units_from_unix)
 }
 
-/// Gives interface `id` — the `index`th of the configuration — its signing key, if it
-/// has one; the link id of the router's signatures there is `index`.
-fn set_signing(
-    engine: &mut Engine,
-    id: InterfaceId,
-    index: usize,
-    iface: &Interface,
-    keys: &[Option<SigningKey>],
-) {
-    if let (Some(Some(key)), Some(s)) = (keys.get(index), iface.signing()) {
-        let link_id = u8::try_from(index % 256).unwrap_or(0);
-        engine.set_signing(id, key.clone(), s.allow_unsigned, link_id);
-    }
+/// Starts the statistics endpoint when `config` has a `stats` block.
+fn start_stats(config: &Config) -> io::Result<Option<StatsServer>> {
+    let Some(endpoint) = &config.stats else {
+        return Ok(None);
+    };
+    let server = StatsServer::start(endpoint).map_err(|e| {
+        io::Error::new(
+            e.kind(),
+            format!(
+                "stats: cannot listen on {}: {e}",
+                std::net::SocketAddr::new(endpoint.address, endpoint.port)
+            ),
+        )
+    })?;
+    log::stderr_text(&format!(
+        "statistics on http://{}/ (/metrics, /stats)\n",
+        server.address()
+    ));
+    Ok(Some(server))
 }
 
 /// Opens the signing state file (when some interface has a key) and gives the core what
@@ -520,68 +572,29 @@ fn open_state_file(config: &Config, engine: &mut Engine) -> io::Result<Option<St
     Ok(Some(file))
 }
 
-fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Result<Runtime> {
+fn start(
+    config: &Config,
+    keys: &[Option<SigningKey>],
+    loglevel: u8,
+    source: Option<&str>,
+) -> io::Result<Runtime> {
     let poll = Poll::new()?;
     let mut engine = Engine::new(config, options(config, loglevel));
     let logger = Logger::new(loglevel);
     let start = Instant::now();
     let waker = Arc::new(Waker::new(poll.registry(), WAKER)?);
+    // The same path as a reload, from no interfaces: serial links first, in file order
+    // (the original's link order), then the others.
     let mut drivers: Vec<Box<dyn Driver>> = Vec::new();
-    // Serial links first, in file order (the original's link order), with preloads.
-    for (index, iface) in config.interfaces.iter().enumerate() {
-        if let Interface::Serial(s) = iface {
-            let id = engine.add_stream_interface(
-                &s.device,
-                &s.preload,
-                Some(s.baudrate),
-                s.max_bitrate.unwrap_or(0),
-                Timestamp::ZERO,
-            );
-            set_signing(&mut engine, id, index, iface, keys);
-            drivers.push(Box::new(SerialDriver::new(s, id)));
-        }
-    }
-    for (index, iface) in config.interfaces.iter().enumerate() {
-        match iface {
-            Interface::Serial(_) => {}
-            Interface::Udp(u) => {
-                let label = UdpDriver::label(u);
-                let rate = u.max_bitrate.unwrap_or(0);
-                let id = match &u.connect {
-                    None => engine.add_datagram_interface(label, rate, u.peers.clone()),
-                    Some(remote) => engine.add_datagram_client(
-                        label,
-                        &remote.to_string(),
-                        rate,
-                        Timestamp::ZERO,
-                    ),
-                };
-                set_signing(&mut engine, id, index, iface, keys);
-                drivers.push(Box::new(UdpDriver::new(u, id, waker.clone())?));
-            }
-            Interface::Tcp(t) => {
-                let label = tcp::label(t);
-                let rate = t.max_bitrate.unwrap_or(0);
-                match &t.connect {
-                    None => {
-                        let id = engine.add_listener(label, t.peers.clone());
-                        set_signing(&mut engine, id, index, iface, keys);
-                        drivers.push(Box::new(TcpListenerDriver::bind(t, id)?));
-                    }
-                    Some(remote) => {
-                        let name = format!("tcp:{remote}");
-                        let id = engine.add_stream_client(label, &name, rate, Timestamp::ZERO);
-                        set_signing(&mut engine, id, index, iface, keys);
-                        drivers.push(Box::new(TcpStreamDriver::client(t, id, waker.clone())));
-                    }
-                }
-            }
+    for request in engine.configure(config, keys, Timestamp::ZERO).requests {
+        if let Request::Open(id, iface) = request {
+            drivers.push(apply::driver_for(&iface, id, &waker)?);
         }
     }
     let timer = TimerFd::new()?;
     poll.registry()
         .register(&mut SourceFd(&timer.as_raw_fd()), TIMER, Interest::READABLE)?;
-    let mut signals = Signals::new([SIGINT, SIGTERM, SIGUSR1])?;
+    let mut signals = Signals::new([SIGINT, SIGTERM, SIGUSR1, SIGHUP])?;
     poll.registry()
         .register(&mut signals, SIGNALS, Interest::READABLE)?;
     if config.interfaces.is_empty() {
@@ -589,25 +602,12 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
     }
     let state_file = open_state_file(config, &mut engine)?;
     let recorder = start_recording(config, &mut engine);
-    let stats = match &config.stats {
-        None => None,
-        Some(endpoint) => {
-            let server = StatsServer::start(endpoint).map_err(|e| {
-                io::Error::new(
-                    e.kind(),
-                    format!(
-                        "stats: cannot listen on {}: {e}",
-                        std::net::SocketAddr::new(endpoint.address, endpoint.port)
-                    ),
-                )
-            })?;
-            log::stderr_text(&format!(
-                "statistics on http://{}/ (/metrics, /stats)\n",
-                server.address()
-            ));
-            Some(server)
-        }
-    };
+    let stats = start_stats(config)?;
+    let notifier = Notifier::from_env();
+    let next_watchdog = notifier
+        .as_ref()
+        .and_then(Notifier::watchdog_interval)
+        .map(|_| Timestamp::ZERO);
     let mut rt = Runtime {
         poll,
         engine,
@@ -623,6 +623,10 @@ fn start(config: &Config, keys: &[Option<SigningKey>], loglevel: u8) -> io::Resu
         recorder,
         stats,
         next_stats: Timestamp::ZERO,
+        waker,
+        source: source.map(str::to_string),
+        notifier,
+        next_watchdog,
     };
     for driver in drivers {
         rt.add(driver, false);

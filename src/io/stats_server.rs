@@ -14,7 +14,7 @@
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -34,10 +34,12 @@ const MAX_HEADERS: usize = 64;
 /// The latest snapshot, shared between the event loop and the server's threads.
 type Latest = Arc<Mutex<Arc<StatsSnapshot>>>;
 
-/// A running statistics endpoint; the event loop gives it snapshots.
+/// A running statistics endpoint; the event loop gives it snapshots. Dropping it stops
+/// it and frees its port (a reload that changes the `stats` block).
 pub struct StatsServer {
     latest: Latest,
     address: SocketAddr,
+    stop: Arc<AtomicBool>,
 }
 
 impl StatsServer {
@@ -48,10 +50,16 @@ impl StatsServer {
         let latest: Latest = Arc::default();
         let shared = latest.clone();
         let endpoint = endpoint.clone();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = stop.clone();
         thread::Builder::new()
             .name("stats-http".into())
-            .spawn(move || accept_loop(&listener, &endpoint, &shared))?;
-        Ok(StatsServer { latest, address })
+            .spawn(move || accept_loop(&listener, &endpoint, &shared, &stopped))?;
+        Ok(StatsServer {
+            latest,
+            address,
+            stop,
+        })
     }
 
     /// Where it listens.
@@ -66,9 +74,33 @@ impl StatsServer {
     }
 }
 
-fn accept_loop(listener: &TcpListener, endpoint: &StatsEndpoint, latest: &Latest) {
+impl Drop for StatsServer {
+    /// Stops the accepting thread (woken by a connection of our own), which closes the
+    /// listening socket; requests being answered finish on their own threads.
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+        let mut to = self.address;
+        if to.ip().is_unspecified() {
+            to.set_ip(match to {
+                SocketAddr::V4(_) => std::net::Ipv4Addr::LOCALHOST.into(),
+                SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
+            });
+        }
+        let _ = TcpStream::connect_timeout(&to, Duration::from_millis(200));
+    }
+}
+
+fn accept_loop(
+    listener: &TcpListener,
+    endpoint: &StatsEndpoint,
+    latest: &Latest,
+    stop: &AtomicBool,
+) {
     let active = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
+        if stop.load(Ordering::Acquire) {
+            return;
+        }
         let Ok(stream) = stream else {
             // Out of descriptors and the like: let the moment pass.
             thread::sleep(Duration::from_millis(10));

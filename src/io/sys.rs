@@ -433,6 +433,22 @@ pub fn effective_uid() -> u32 {
     unsafe { libc::geteuid() }
 }
 
+/// `CLOCK_MONOTONIC` in microseconds: the clock systemd reads `MONOTONIC_USEC=` against.
+pub fn monotonic_micros() -> u64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a live local the call writes to; CLOCK_MONOTONIC always exists.
+    let r = unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut t) };
+    if r != 0 {
+        return 0;
+    }
+    let secs = u64::try_from(t.tv_sec).unwrap_or(0);
+    let nanos = u64::try_from(t.tv_nsec).unwrap_or(0);
+    secs.saturating_mul(1_000_000).saturating_add(nanos / 1_000)
+}
+
 /// A monotonic one-shot timer as a file descriptor that becomes readable when it fires.
 pub struct TimerFd {
     fd: std::os::fd::OwnedFd,

@@ -40,20 +40,13 @@ fn tune(stream: &TcpStream) -> io::Result<()> {
 /// The label of `config` in messages and counters: `tcp ADDRESS:PORT` for a server,
 /// `tcp connect HOST:PORT` for a client.
 pub fn label(config: &TcpInterface) -> String {
-    match &config.connect {
-        None => format!(
-            "tcp {}",
-            SocketAddr::new(config.local_address(), config.port)
-        ),
-        Some(remote) => format!("tcp connect {remote}"),
-    }
+    config.label()
 }
 
 /// A server's listening socket.
 pub struct TcpListenerDriver {
     interface: InterfaceId,
     listener: TcpListener,
-    max_bitrate: u64,
     accepted: Vec<Box<dyn Driver>>,
 }
 
@@ -78,7 +71,6 @@ impl TcpListenerDriver {
         Ok(TcpListenerDriver {
             interface,
             listener: socket.into(),
-            max_bitrate: config.max_bitrate.unwrap_or(0),
             accepted: Vec::new(),
         })
     }
@@ -109,7 +101,7 @@ impl Driver for TcpListenerDriver {
                         continue; // already gone
                     }
                     // Refused by the limits: dropping the stream closes it.
-                    if let Some(id) = engine.accept(self.interface, peer, self.max_bitrate, now) {
+                    if let Some(id) = engine.accept(self.interface, peer, now) {
                         self.accepted.push(Box::new(TcpStreamDriver {
                             interface: id,
                             stream: Some(stream),

@@ -96,13 +96,7 @@ impl UdpDriver {
     /// The label of `config` in messages and counters: `udp ADDRESS:PORT` for a
     /// server, `udp connect HOST:PORT` for a client.
     pub fn label(config: &UdpInterface) -> String {
-        match &config.connect {
-            None => format!(
-                "udp {}",
-                SocketAddr::new(config.local_address(), config.port)
-            ),
-            Some(remote) => format!("udp connect {remote}"),
-        }
+        config.label()
     }
 
     /// Binds a server's socket at once (a port in use stops the start, naming the

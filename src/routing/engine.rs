@@ -4,6 +4,8 @@
 //! system and these calls.
 //!
 //! ```text
+//! config:    engine.configure(config, keys, now) → close/open requests    (at start, and
+//!            at every reload: only what changed is closed or opened; see [`Reconfigured`])
 //! start:     ifc = engine.add_datagram_interface(label, max_bitrate)       (a UDP socket)
 //!            ifc = engine.add_stream_interface(device, …, now)             (a serial port)
 //! input:     engine.handle_datagram(ifc, peer, bytes, now)    every datagram received
@@ -20,6 +22,8 @@
 //! time), the round robin between the peers of an interface, the `max_bitrate` pacer, the
 //! quiet-line rule for held-back bytes, the backoff for reopening lost devices, and every
 //! counter. The routing decisions themselves are the [`Router`]'s.
+
+mod configure;
 
 use std::collections::VecDeque;
 use std::fmt::Display;
@@ -50,6 +54,8 @@ use crate::signing::sign;
 use crate::signing::state::SavedState;
 use crate::signing::{Edge, Signing, SigningKey};
 use crate::stats::{History, StatsSnapshot};
+
+pub use configure::{Reconfigured, Request};
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);
@@ -122,6 +128,10 @@ pub struct Engine {
     tap: Option<Tap>,
     rules: RuleBook,
     history: History,
+    /// The configuration in force: its interfaces are those [`Engine::configure`] added.
+    config: Config,
+    /// The core's interface and the signing key of each of `config.interfaces`.
+    configured: Vec<configure::Configured>,
 }
 
 impl Engine {
@@ -138,6 +148,11 @@ impl Engine {
             tap: None,
             rules: RuleBook::new(config),
             history: History::default(),
+            config: Config {
+                interfaces: Vec::new(),
+                ..config.clone()
+            },
+            configured: Vec::new(),
         }
     }
 
@@ -255,32 +270,40 @@ impl Engine {
     }
 
     /// Adds a stream server (a TCP listener) named `label`, taking connections within
-    /// `limits` ([`Engine::accept`]); each sends at most `max_bitrate` bit/s.
-    pub fn add_listener(&mut self, label: String, limits: PeerLimits) -> InterfaceId {
+    /// `limits` ([`Engine::accept`]); each sends at most `max_bitrate` bit/s (0: no
+    /// limit).
+    pub fn add_listener(
+        &mut self,
+        label: String,
+        limits: PeerLimits,
+        max_bitrate: u64,
+    ) -> InterfaceId {
         self.push_interface(Interface::reliable_stream(
             label,
             0,
             Kind::Listener {
                 limits,
                 connections: 0,
+                max_bitrate,
             },
         ))
     }
 
     /// A connection from `peer` arrived at server `listener`: returns its new stream
-    /// interface (one link, named `tcp:a.b.c.d:port`), or None if the server's limits
-    /// refuse it (counted; said once per reason). Close a refused connection at once.
+    /// interface (one link, named `tcp:a.b.c.d:port`, paced at the server's
+    /// `max_bitrate`), or None if the server's limits refuse it (counted; said once per
+    /// reason). Close a refused connection at once.
     pub fn accept(
         &mut self,
         listener: InterfaceId,
         peer: SocketAddr,
-        max_bitrate: u64,
         now: Timestamp,
     ) -> Option<InterfaceId> {
         let server = self.interfaces.get_mut(listener.0)?;
         let Kind::Listener {
             limits,
             connections,
+            max_bitrate,
         } = &mut server.kind
         else {
             return None;
@@ -293,6 +316,7 @@ impl Engine {
             return None;
         }
         *connections += 1;
+        let max_bitrate = *max_bitrate;
         let edge = server.signing.as_ref().map(Edge::fresh_copy);
         let name = format!("tcp:{peer}");
         let link = self.router.add_connection_link(&name, now);
@@ -338,6 +362,12 @@ impl Engine {
     /// in a bounded buffer is dropped and counted ([`Engine::recording_dropped`]).
     pub fn set_recording(&mut self, filter: RecordFilter) {
         self.tap = Some(Tap::new(filter));
+    }
+
+    /// Stops recording (a reload removed or changed the `record` block): frames kept
+    /// and not yet taken are dropped.
+    pub fn stop_recording(&mut self) {
+        self.tap = None;
     }
 
     /// Hands each frame kept for recording to `take` with its time of arrival, oldest

@@ -81,6 +81,8 @@ pub enum Kind {
         limits: PeerLimits,
         /// Connections open now.
         connections: usize,
+        /// The `max_bitrate` of each connection it accepts (0: no limit).
+        max_bitrate: u64,
     },
 }
 

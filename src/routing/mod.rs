@@ -14,6 +14,8 @@
 //!   [`reconnect`] backoff;
 //! - [`intake`]: frames from a parser into the router (links created on a peer's first
 //!   valid frame, unknown ids reported once);
+//! - [`reload`]: what a new configuration changes (interfaces matched by identity, rules
+//!   by text), which [`Engine::configure`] applies at start and at every reload;
 //! - [`link`], [`pool`] (addresses with expiry), [`counters`], [`event`] (log events and
 //!   the original's exact texts), [`time`] (time as a value).
 //!
@@ -31,6 +33,7 @@ pub mod pacer;
 pub mod pool;
 pub mod queue;
 pub mod reconnect;
+pub mod reload;
 pub mod remotes;
 pub mod router;
 pub mod snapshot;
@@ -40,7 +43,7 @@ pub mod time;
 
 pub use counters::{InterfaceReport, LinkCounters, LinkReport};
 pub use dispatch::Decision;
-pub use engine::{Engine, Notice, Transmit};
+pub use engine::{Engine, Notice, Reconfigured, Request, Transmit};
 pub use event::{Event, LinkRef, PacketSummary};
 pub use interface::InterfaceId;
 pub use link::{Link, LinkId, LinkKind};

@@ -181,6 +181,12 @@ impl PacketQueue {
         self.bytes
     }
 
+    /// Changes the capacity (a reload's `queue` block): packets beyond a smaller one
+    /// stay queued, and the next push makes room as usual.
+    pub fn set_capacity(&mut self, capacity: usize) {
+        self.capacity = capacity;
+    }
+
     /// The capacity in bytes.
     pub fn capacity(&self) -> usize {
         self.capacity

@@ -108,6 +108,26 @@ impl Router {
         &self.options
     }
 
+    /// Replaces the filter with `config`'s chains and default action (a reload): the
+    /// verdict memo starts empty, and the per-rule counts start from `counts` (by the
+    /// new filter's flat rule numbers: what the same rules counted before).
+    pub fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
+        let mut filter = Filter::with_cache_slots(config, self.options.cache_slots);
+        filter.carry_counts(counts);
+        self.filter = filter;
+    }
+
+    /// Sets the queue bounds (a reload's `queue` block): every link's queue, and the
+    /// total, take the new sizes at once; a queue above its new bound keeps what it holds
+    /// and makes room at its next packet.
+    pub fn set_queue_bounds(&mut self, link_bytes: usize, total_bytes: usize) {
+        self.options.queue_capacity = link_bytes;
+        self.options.total_queue_capacity = total_bytes;
+        for link in &mut self.links {
+            link.queue.set_capacity(link_bytes);
+        }
+    }
+
     /// Changes which events are produced (0 = none, 3 = all).
     pub fn set_event_level(&mut self, level: u8) {
         self.options.event_level = level;

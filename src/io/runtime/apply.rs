@@ -1,0 +1,148 @@
+//! Applying a configuration in the event loop: the drivers for the interfaces the core
+//! adds (at start and at a reload), and the reload itself (SIGHUP) — read the file
+//! again, let the core decide what changes ([`Engine::configure`]), then close and open
+//! exactly the sockets it names and restart what it says changed (recording, the
+//! statistics endpoint, the signing state file). A file that does not load changes
+//! nothing.
+//!
+//! [`Engine::configure`]: crate::routing::Engine::configure
+
+use std::io;
+use std::sync::Arc;
+
+use mio::Waker;
+
+use super::super::driver::Driver;
+use super::super::log;
+use super::super::serial::SerialDriver;
+use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
+use super::super::udp::UdpDriver;
+use super::{RECORDER_FINISH, Runtime, open_state_file, start_recording, start_stats};
+use crate::config::{self, FromFile, Interface};
+use crate::routing::{InterfaceId, Request, Timestamp};
+use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
+
+/// A driver for the core's new interface `id`, of block `iface`. A server binds now
+/// (a port in use is an error naming the block); clients and serial ports open when the
+/// core asks.
+pub(super) fn driver_for(
+    iface: &Interface,
+    id: InterfaceId,
+    waker: &Arc<Waker>,
+) -> io::Result<Box<dyn Driver>> {
+    Ok(match iface {
+        Interface::Serial(s) => Box::new(SerialDriver::new(s, id)),
+        Interface::Udp(u) => Box::new(UdpDriver::new(u, id, waker.clone())?),
+        Interface::Tcp(t) if t.connect.is_none() => Box::new(TcpListenerDriver::bind(t, id)?),
+        Interface::Tcp(t) => Box::new(TcpStreamDriver::client(t, id, waker.clone())),
+    })
+}
+
+impl Runtime {
+    /// Reads the configuration file again and applies it (SIGHUP), telling systemd
+    /// around it. A file that cannot be read or does not load is reported, located, and
+    /// the running configuration stays exactly as it was.
+    pub(super) fn reload(&mut self, now: Timestamp) {
+        if let Some(notifier) = &self.notifier {
+            notifier.reloading();
+        }
+        match &self.source {
+            None => log::warn(
+                &"SIGHUP: the configuration came from command-line endpoints; there is no file to read again",
+            ),
+            Some(path) => match config::read_file(path) {
+                Ok(file) => self.apply(file, now),
+                Err(why) => log::stderr_text(&format!(
+                    "error: configuration not reloaded, the running one is kept:\n{why}"
+                )),
+            },
+        }
+        if let Some(notifier) = &self.notifier {
+            notifier.ready();
+        }
+    }
+
+    /// Takes what the signing state file saved for the keys a reload added (`new_keys`,
+    /// by fingerprint: say a key used before, taken out of the file and put back), so
+    /// that their streams' last timestamps are known again and no old frame of theirs
+    /// can be replayed. The streams of keys in use are left alone.
+    fn restore_signing_state(&mut self, config: &config::Config, new_keys: &[[u8; 8]]) {
+        let Some(path) = config.signing_state_path(|k| std::env::var(k).ok()) else {
+            return;
+        };
+        let Ok(bytes) = crate::files::read_regular(&path, STATE_FILE_LIMIT) else {
+            return;
+        };
+        let text = String::from_utf8_lossy(&bytes);
+        if let Ok(mut state) = SavedState::parse(&text) {
+            state.streams.retain(|s| new_keys.contains(&s.key));
+            self.engine.restore_signing_state(&state);
+        }
+    }
+
+    /// Runs `file` from now on: the core keeps what did not change and names what the
+    /// loop closes and opens.
+    fn apply(&mut self, file: FromFile, now: Timestamp) {
+        for w in &file.warnings {
+            log::warn(w);
+        }
+        let config = &file.config;
+        let done = self.engine.configure(config, &file.keys, now);
+        for request in &done.requests {
+            match request {
+                Request::Close(id) => self.remove(*id),
+                Request::Open(id, iface) => match driver_for(iface, *id, &self.waker) {
+                    Ok(driver) => self.add(driver, false),
+                    Err(e) => {
+                        log::error(&format_args!(
+                            "reload: cannot open {e}; it stays closed until a reload opens it"
+                        ));
+                        self.engine.unconfigure(*id);
+                    }
+                },
+            }
+        }
+        for line in &done.details {
+            log::stderr_text(&format!("reload: {line}\n"));
+        }
+        if done.signing_state_changed {
+            if let Some(file) = self.state_file.take() {
+                file.finish(self.engine.signing_state(true).as_ref());
+            }
+            match open_state_file(config, &mut self.engine) {
+                Ok(file) => {
+                    self.state_file = file;
+                    log::stderr_text("reload: signing state file reopened\n");
+                }
+                // Checked before the reload; changed since: nothing is saved until the
+                // next reload names a usable file.
+                Err(e) => log::error(&format_args!(
+                    "reload: {e}; the signing state is not saved until a reload names a usable file"
+                )),
+            }
+        }
+        if !done.new_keys.is_empty() && !done.signing_state_changed {
+            self.restore_signing_state(config, &done.new_keys);
+        }
+        if done.record_changed {
+            self.record();
+            if let Some(mut recorder) = self.recorder.take() {
+                recorder.finish(RECORDER_FINISH);
+            }
+            self.engine.stop_recording();
+            self.recorder = start_recording(config, &mut self.engine);
+            log::stderr_text("reload: recording restarted\n");
+        }
+        if done.stats_changed {
+            // The old endpoint lets its port go before the new one takes it.
+            self.stats = None;
+            self.stats = start_stats(config).unwrap_or_else(|e| {
+                log::error(&e);
+                None
+            });
+            log::stderr_text("reload: statistics endpoint restarted\n");
+        }
+        self.handle_notices(now);
+        log::stderr_text(&format!("configuration reloaded: {done}\n"));
+    }
+}

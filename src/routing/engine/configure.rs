@@ -1,0 +1,522 @@
+//! The core takes a configuration: at start (from none) and at every reload, in one
+//! call between two wake-ups. What to keep, change, close and open is decided here
+//! ([`super::super::reload`] compares); the event loop gets the sockets to close and the
+//! interfaces to open ([`Request`]) and moves nothing else.
+
+use std::fmt;
+
+use super::{Engine, Notice};
+use crate::config::{Config, Interface, PeerLimits};
+use crate::filter::FilterCounts;
+use crate::routing::interface::{InterfaceId, Kind, pacer_for};
+use crate::routing::reload::{self, Fate, InPlace, Keyed, RulePlan};
+use crate::routing::snapshot::RuleBook;
+use crate::routing::{LinkId, RouterOptions, Timestamp};
+use crate::signing::{Edge, SigningKey};
+
+/// The core's interface for one block of the configuration in force, and its key.
+#[derive(Debug, Clone)]
+pub(super) struct Configured {
+    id: InterfaceId,
+    key: Option<SigningKey>,
+}
+
+/// What the event loop must do after [`Engine::configure`], in the order given (every
+/// close comes before every open: a port or device may move from an old block to a new
+/// one, and an interface number may be used again).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Request {
+    /// Close the driver of this interface (the core has forgotten it).
+    Close(InterfaceId),
+    /// Make a driver for this new interface from its block. Servers bind at once;
+    /// clients and serial ports are opened when the core asks ([`Notice::Open`]). If it
+    /// cannot be made, tell the core with [`Engine::unconfigure`].
+    Open(InterfaceId, Interface),
+}
+
+/// What [`Engine::configure`] did, and what is left to the event loop.
+#[derive(Debug, Clone, Default)]
+pub struct Reconfigured {
+    /// Sockets to close and interfaces to open, in this order.
+    pub requests: Vec<Request>,
+    /// One line per interface that was added, removed, changed in place or reopened.
+    pub details: Vec<String>,
+    /// Rules of the new configuration.
+    pub rules: usize,
+    /// Rules the old configuration did not have (by text, in the same chain).
+    pub rules_changed: usize,
+    /// The default action changed.
+    pub default_changed: bool,
+    /// Interfaces added, removed, and changed (in place or reopened).
+    pub added: usize,
+    /// Interfaces removed.
+    pub removed: usize,
+    /// Interfaces changed in place or reopened.
+    pub changed: usize,
+    /// Frames that were queued for links of closed interfaces (dropped and counted here,
+    /// not sent).
+    pub dropped: u64,
+    /// The `record` block changed: the recording is to be restarted (or stopped).
+    pub record_changed: bool,
+    /// The `stats` block changed: the endpoint is to be restarted (or stopped).
+    pub stats_changed: bool,
+    /// Where the signing state is kept changed (or whether there is any).
+    pub signing_state_changed: bool,
+    /// Fingerprints of keys no interface had before: the saved signing state may know
+    /// their streams.
+    pub new_keys: Vec<[u8; 8]>,
+}
+
+impl fmt::Display for Reconfigured {
+    /// `12 rules (3 changed), +1 interface, -0, 1 changed`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = |n: usize| if n == 1 { "" } else { "s" };
+        write!(
+            f,
+            "{} rule{} ({} changed), +{} interface{}, -{}, {} changed",
+            self.rules,
+            s(self.rules),
+            self.rules_changed,
+            self.added,
+            s(self.added),
+            self.removed,
+            self.changed
+        )?;
+        if self.default_changed {
+            write!(f, ", default_action changed")?;
+        }
+        if self.dropped > 0 {
+            write!(f, ", {} queued frames dropped", self.dropped)?;
+        }
+        Ok(())
+    }
+}
+
+impl Engine {
+    /// Runs `config` from now on, with `keys` (the key of each of its interfaces, in
+    /// order), keeping all that did not change:
+    /// - the filter (chains, priorities, default action) is replaced at once when it
+    ///   changed, with an empty verdict memo; the counts of rules that read the same go
+    ///   on;
+    /// - interfaces are matched by identity ([`reload::plan_interfaces`]): an unchanged
+    ///   one keeps its links, queues, learned addresses, connections, signing streams and
+    ///   counters; `max_bitrate`, the signing settings and the server limits change in
+    ///   place; a removed or reopened one is forgotten with its links (what was queued
+    ///   for them is dropped and counted in [`Reconfigured::dropped`]);
+    /// - new queue bounds apply to every queue at once.
+    ///
+    /// At start, call it once after [`Engine::new`] with the same configuration.
+    pub fn configure(
+        &mut self,
+        config: &Config,
+        keys: &[Option<SigningKey>],
+        now: Timestamp,
+    ) -> Reconfigured {
+        let key_of = |i: usize| keys.get(i).and_then(Option::as_ref);
+        let rules = reload::plan_rules(&self.config, config);
+        let plan = {
+            let old: Vec<Keyed<'_>> = self
+                .config
+                .interfaces
+                .iter()
+                .zip(&self.configured)
+                .map(|(i, c)| (i, c.key.as_ref()))
+                .collect();
+            let new: Vec<Keyed<'_>> = (config.interfaces.iter().enumerate())
+                .map(|(n, i)| (i, key_of(n)))
+                .collect();
+            reload::plan_interfaces(&old, &new)
+        };
+        let mut done = Reconfigured {
+            rules: rules.total,
+            rules_changed: rules.changed,
+            default_changed: !rules.default_carried,
+            record_changed: self.config.record != config.record,
+            stats_changed: self.config.stats != config.stats,
+            signing_state_changed: self.config.signing_state_path(|_| None)
+                != config.signing_state_path(|_| None),
+            ..Reconfigured::default()
+        };
+        if !rules.unchanged {
+            let counts = carried_counts(&self.router.filter_counts(), &rules);
+            self.router.replace_filter(config, &counts);
+            self.rules = RuleBook::new(config);
+        }
+        if self.config.queue != config.queue {
+            let d = RouterOptions::default();
+            self.router.set_queue_bounds(
+                config.queue.link_bytes.unwrap_or(d.queue_capacity),
+                config.queue.total_bytes.unwrap_or(d.total_queue_capacity),
+            );
+        }
+        let mut ids: Vec<Option<InterfaceId>> = vec![None; config.interfaces.len()];
+        for &o in &plan.removed {
+            let id = self.configured[o].id;
+            let label = self.describe(id);
+            let dropped = self.forget_interface(id, &mut done.requests);
+            done.details
+                .push(format!("{label} removed{}", dropped_text(dropped)));
+            done.dropped += dropped;
+            done.removed += 1;
+        }
+        let mut to_open = plan.added.clone();
+        for m in &plan.matched {
+            let id = self.configured[m.old].id;
+            match &m.fate {
+                Fate::Kept => ids[m.new] = Some(id),
+                Fate::Changed(what) => {
+                    let iface = &config.interfaces[m.new];
+                    self.change_in_place(id, iface, key_of(m.new), m.new, what);
+                    let names: Vec<&str> = what.iter().map(|w| w.name()).collect();
+                    let label = self.describe(id);
+                    done.details
+                        .push(format!("{label} changed in place: {}", names.join(", ")));
+                    done.changed += 1;
+                    ids[m.new] = Some(id);
+                }
+                Fate::Reopened => {
+                    let label = self.describe(id);
+                    let dropped = self.forget_interface(id, &mut done.requests);
+                    done.details.push(format!(
+                        "{label} reopened: a setting of its socket or device changed{}",
+                        dropped_text(dropped)
+                    ));
+                    done.dropped += dropped;
+                    done.changed += 1;
+                    to_open.push(m.new);
+                }
+            }
+        }
+        // Serial links first, then the others, each in file order (the order links
+        // are offered packets at start).
+        to_open.sort_by_key(|&n| (!matches!(config.interfaces[n], Interface::Serial(_)), n));
+        for n in to_open {
+            let iface = &config.interfaces[n];
+            let id = self.add_configured(iface, key_of(n), n, now);
+            if plan.added.contains(&n) {
+                done.details.push(format!("{} added", self.describe(id)));
+                done.added += 1;
+            }
+            done.requests.push(Request::Open(id, iface.clone()));
+            ids[n] = Some(id);
+        }
+        let had = |k: &SigningKey| self.configured.iter().any(|c| c.key.as_ref() == Some(k));
+        let mut new_keys: Vec<[u8; 8]> = (keys.iter().flatten())
+            .filter(|k| !had(k))
+            .map(SigningKey::fingerprint)
+            .collect();
+        new_keys.dedup();
+        done.new_keys = new_keys;
+        self.configured = (ids.into_iter().enumerate())
+            .filter_map(|(n, id)| {
+                Some(Configured {
+                    id: id?,
+                    key: key_of(n).cloned(),
+                })
+            })
+            .collect();
+        self.config = config.clone();
+        self.take_output();
+        done
+    }
+
+    /// Forgets interface `id`, which [`Request::Open`] named but the event loop could
+    /// not open (a port taken by another program): the configuration runs without it,
+    /// and the next reload tries it again.
+    pub fn unconfigure(&mut self, id: InterfaceId) {
+        let Some(n) = self.configured.iter().position(|c| c.id == id) else {
+            return;
+        };
+        self.forget_interface(id, &mut Vec::new());
+        self.configured.remove(n);
+        if n < self.config.interfaces.len() {
+            self.config.interfaces.remove(n);
+        }
+    }
+
+    /// The configuration in force (its interfaces are those the core runs).
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// How messages name interface `id`.
+    fn describe(&self, id: InterfaceId) -> String {
+        self.interfaces
+            .get(id.0)
+            .map_or_else(|| format!("interface {}", id.0), |i| i.described.clone())
+    }
+
+    /// Adds the interface of block `iface`, the `index`th of its configuration, with
+    /// its `key`.
+    fn add_configured(
+        &mut self,
+        iface: &Interface,
+        key: Option<&SigningKey>,
+        index: usize,
+        now: Timestamp,
+    ) -> InterfaceId {
+        let id = match iface {
+            Interface::Serial(s) => {
+                let rate = s.max_bitrate.unwrap_or(0);
+                self.add_stream_interface(&s.device, &s.preload, Some(s.baudrate), rate, now)
+            }
+            Interface::Udp(u) => {
+                let rate = u.max_bitrate.unwrap_or(0);
+                match &u.connect {
+                    None => self.add_datagram_interface(u.label(), rate, u.peers.clone()),
+                    Some(remote) => {
+                        self.add_datagram_client(u.label(), &remote.to_string(), rate, now)
+                    }
+                }
+            }
+            Interface::Tcp(t) => {
+                let rate = t.max_bitrate.unwrap_or(0);
+                match &t.connect {
+                    None => self.add_listener(t.label(), t.peers.clone(), rate),
+                    Some(remote) => {
+                        self.add_stream_client(t.label(), &format!("tcp:{remote}"), rate, now)
+                    }
+                }
+            }
+        };
+        if let (Some(key), Some(s)) = (key, iface.signing()) {
+            let link_id = u8::try_from(index % 256).unwrap_or(0);
+            self.set_signing(id, key.clone(), s.allow_unsigned, link_id);
+        }
+        id
+    }
+
+    /// Applies the settings `what` of block `iface` (the `index`th, with `key`) to
+    /// interface `id` and, for a server, to the connections it accepted.
+    fn change_in_place(
+        &mut self,
+        id: InterfaceId,
+        iface: &Interface,
+        key: Option<&SigningKey>,
+        index: usize,
+        what: &[InPlace],
+    ) {
+        let (rate, limits) = match iface {
+            Interface::Udp(u) => (u.max_bitrate, Some(&u.peers)),
+            Interface::Tcp(t) => (t.max_bitrate, Some(&t.peers)),
+            Interface::Serial(s) => (s.max_bitrate, None),
+        };
+        let signing = iface.signing().zip(key).map(|(s, key)| {
+            let slot = self.signing.add_key(key.clone());
+            (slot, s.allow_unsigned)
+        });
+        let family = self.family(id);
+        for &w in what {
+            for &member in &family {
+                let Some(interface) = self.interfaces.get_mut(member.0) else {
+                    continue;
+                };
+                match w {
+                    InPlace::MaxBitrate => {
+                        let rate = rate.unwrap_or(0);
+                        match &mut interface.kind {
+                            Kind::Listener { max_bitrate, .. } => *max_bitrate = rate,
+                            _ => {
+                                interface.pacer = pacer_for(rate);
+                                interface.pace_deadline = None;
+                            }
+                        }
+                    }
+                    InPlace::Signing => {
+                        interface.signing = signing.map(|(key_slot, allow_unsigned)| {
+                            let old = interface.signing.take();
+                            Edge {
+                                key_slot,
+                                allow_unsigned,
+                                link_id: old
+                                    .as_ref()
+                                    .map_or(u8::try_from(index % 256).unwrap_or(0), |e| e.link_id),
+                                counters: old.map(|e| e.counters).unwrap_or_default(),
+                                said: Vec::new(),
+                            }
+                        });
+                    }
+                    InPlace::Peers => {
+                        if let (
+                            Kind::Datagram { limits: l, .. } | Kind::Listener { limits: l, .. },
+                            Some(new),
+                        ) = (&mut interface.kind, limits)
+                        {
+                            *l = PeerLimits::clone(new);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Interface `id` and, for a server, the connections it accepted.
+    fn family(&self, id: InterfaceId) -> Vec<InterfaceId> {
+        let mut family = vec![id];
+        family.extend(self.interfaces.iter().filter_map(|(key, i)| match i.kind {
+            Kind::Stream {
+                accepted_by: Some(server),
+                ..
+            } if server == id => Some(InterfaceId(key)),
+            _ => None,
+        }));
+        family
+    }
+
+    /// Removes interface `id` (with the connections of a server) and its links; asks the
+    /// loop to close each. Returns how many queued frames were dropped.
+    fn forget_interface(&mut self, id: InterfaceId, requests: &mut Vec<Request>) -> u64 {
+        let mut dropped = 0;
+        for member in self.family(id) {
+            let Some(interface) = self.interfaces.try_remove(member.0) else {
+                continue;
+            };
+            let links: Vec<(LinkId, String)> = match &interface.kind {
+                Kind::Datagram { remotes, .. } => {
+                    remotes.iter().map(|(l, a)| (l, a.to_string())).collect()
+                }
+                Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
+                    vec![(*link, interface.label.clone())]
+                }
+                Kind::Listener { .. } => Vec::new(),
+            };
+            for (link, name) in links {
+                dropped += self.router.clear_queue(link);
+                self.router.remove_link(link);
+                self.notices
+                    .push_back(Notice::LinkRemoved { id: link, name });
+            }
+            requests.push(Request::Close(member));
+        }
+        dropped
+    }
+}
+
+fn dropped_text(dropped: u64) -> String {
+    if dropped == 0 {
+        String::new()
+    } else {
+        format!(" ({dropped} queued frames dropped)")
+    }
+}
+
+/// The counts the new filter starts from: each rule's old counts where [`RulePlan`]
+/// found the same rule, and the default action's if it is the same.
+fn carried_counts(old: &FilterCounts, rules: &RulePlan) -> FilterCounts {
+    let rule = |o: Option<usize>| {
+        o.and_then(|o| old.rules.get(o).copied())
+            .unwrap_or_default()
+    };
+    FilterCounts {
+        rules: rules.carried.iter().map(|&o| rule(o)).collect(),
+        default_packets: if rules.default_carried {
+            old.default_packets
+        } else {
+            0
+        },
+        default_bytes: if rules.default_carried {
+            old.default_bytes
+        } else {
+            0
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::net::SocketAddr;
+
+    use super::*;
+    use crate::config::load;
+    use crate::wire::encode::{Header, encode_v2};
+
+    const T0: Timestamp = Timestamp::ZERO;
+
+    fn frame(id: u32, system: u8) -> Vec<u8> {
+        let header = Header {
+            seq: 0,
+            system,
+            component: 1,
+        };
+        let mut out = Vec::new();
+        encode_v2(header, id, &[7; 9], None, &mut out).expect("encode");
+        out
+    }
+
+    fn peer(port: u16) -> SocketAddr {
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    fn opened(done: &Reconfigured) -> Vec<InterfaceId> {
+        (done.requests.iter())
+            .filter_map(|r| match r {
+                Request::Open(id, _) => Some(*id),
+                Request::Close(_) => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_reload_keeps_what_did_not_change_and_drops_what_went() {
+        let old = load(
+            "udp { port 14550; }\nudp { port 14551; }\n\
+             chain default { reject if PING; accept; }\n",
+        )
+        .expect("config")
+        .config;
+        let mut e = Engine::new(&old, RouterOptions::default());
+        let ids = opened(&e.configure(&old, &[], T0));
+        let [a, b] = ids[..] else {
+            panic!("two interfaces: {ids:?}")
+        };
+        e.handle_datagram(a, peer(1), &frame(0, 1), T0);
+        e.handle_datagram(b, peer(2), &frame(0, 2), T0); // queued for peer 1, on `a`
+        e.handle_datagram(a, peer(1), &frame(30, 1), T0); // queued for peer 2, on `b`
+        let counts = e.router().filter_counts();
+
+        let new = load(
+            "udp { port 14551; max_bitrate 9600; }\n\
+             chain default { reject if HEARTBEAT; accept; }\n",
+        )
+        .expect("config")
+        .config;
+        let done = e.configure(&new, &[], T0);
+        assert_eq!(done.requests, [Request::Close(a)]);
+        assert_eq!((done.added, done.removed, done.changed), (0, 1, 1));
+        assert_eq!(done.dropped, 1, "the heartbeat queued for peer 1");
+        assert_eq!(
+            done.to_string(),
+            "2 rules (1 changed), +0 interfaces, -1, 1 changed, 1 queued frames dropped"
+        );
+        // `b` kept its link, its learned address and its queue; it is paced now.
+        let link = e.router().links().next().expect("peer 2's link");
+        assert_eq!(link.name(), "127.0.0.1:2");
+        assert!(e.router().peek(link.id()).is_some(), "its queue is kept");
+        assert_eq!(e.interface(b).map(|i| i.pacer.rate()), Some(9600));
+        // `accept` reads the same: its counts go on; the new reject rule starts at 0.
+        let carried = e.router().filter_counts();
+        assert_eq!(carried.rules[1], counts.rules[1]);
+        assert_eq!(carried.rules[0].packets, 0);
+        assert!(counts.rules[1].packets > 0);
+    }
+
+    #[test]
+    fn a_server_passes_its_new_rate_to_its_connections() {
+        let old = load("tcp { port 5760; }\n").expect("config").config;
+        let mut e = Engine::new(&old, RouterOptions::default());
+        let ids = opened(&e.configure(&old, &[], T0));
+        let conn = e.accept(ids[0], peer(9), T0).expect("accepted");
+        let new = load("tcp { port 5760; max_bitrate 4800; }\n")
+            .expect("config")
+            .config;
+        let done = e.configure(&new, &[], T0);
+        assert!(done.requests.is_empty(), "{:?}", done.requests);
+        assert_eq!(e.interface(conn).map(|i| i.pacer.rate()), Some(4800));
+        let later = e.accept(ids[0], peer(10), T0).expect("accepted");
+        assert_eq!(e.interface(later).map(|i| i.pacer.rate()), Some(4800));
+        // Removing the server closes its connections too.
+        let none = load("default_action accept;\n").expect("config").config;
+        let done = e.configure(&none, &[], T0);
+        assert_eq!(done.requests.len(), 3, "{:?}", done.requests);
+    }
+}
