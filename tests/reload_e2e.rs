@@ -535,3 +535,96 @@ fn an_abstract_notify_socket_works_and_no_watchdog_unless_asked() {
     assert!(guard.wait(5 * SECOND).is_some_and(|s| s.success()));
     assert!(!seen.iter().any(|m| m.contains("WATCHDOG")), "{seen:?}");
 }
+
+/// `GET /stats` from the endpoint on `port`: the JSON, or `None` if nothing answers.
+fn stats_json(port: u16) -> Option<serde_json::Value> {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).ok()?;
+    s.set_read_timeout(Some(5 * SECOND)).ok()?;
+    s.write_all(b"GET /stats HTTP/1.1\r\nHost: x\r\n\r\n")
+        .ok()?;
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).ok()?;
+    serde_json::from_str(answer.split_once("\r\n\r\n")?.1).ok()
+}
+
+/// The frames received on link `name` according to the endpoint on `port`, once it
+/// counts at least `least` of them (within 10 s).
+fn frames_in_at_least(port: u16, name: &str, least: u64) -> u64 {
+    let mut last = None;
+    wait_until("the endpoint counts the frames", 10 * SECOND, || {
+        last = stats_json(port).and_then(|s| {
+            s["links"].as_array()?.iter().find(|l| l["name"] == name)?["frames_in"].as_u64()
+        });
+        last.is_some_and(|n| n >= least)
+    });
+    last.unwrap_or(0)
+}
+
+/// A `stats` block left as it was keeps its endpoint and every counter across a
+/// reload; one moved to another port is restarted there and the old port is closed.
+#[test]
+fn the_stats_endpoint_is_kept_or_moved_by_a_reload() {
+    let s = Scratch::new("reload-stats");
+    let (port, http_a, http_b) = (free_udp_port(), free_tcp_port(), free_tcp_port());
+    let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
+    let with_stats = |http: u16| format!("{udp}stats {{ port {http}; }}\n");
+    let mut router = Router::start(&s, &with_stats(http_a), 1);
+    let a = udp_peer(&mut router, port, 1);
+    let name = a.local_addr().expect("addr").to_string();
+    for n in 0..5 {
+        a.send(&attitude(1, n)).expect("send");
+    }
+    let before = frames_in_at_least(http_a, &name, 6);
+
+    // Unchanged: the same endpoint, the counts go on from where they were.
+    let line = reload(&mut router, &format!("{}# a comment\n", with_stats(http_a)));
+    assert!(line.contains("+0 interfaces, -0, 0 changed"), "{line}");
+    a.send(&attitude(1, 9)).expect("send");
+    assert_eq!(frames_in_at_least(http_a, &name, before + 1), before + 1);
+
+    // Moved: the new port answers with the same counts, the old one is closed.
+    reload(&mut router, &with_stats(http_b));
+    assert_eq!(frames_in_at_least(http_b, &name, before + 1), before + 1);
+    wait_until("the old port closed", 5 * SECOND, || {
+        TcpStream::connect(("127.0.0.1", http_a)).is_err()
+    });
+    router.stop();
+}
+
+/// A reload is checked like a start: a `record` path whose fixed name is a file
+/// mavtables did not write is refused (located), nothing changes, and the file is left
+/// as it was.
+#[test]
+fn a_reload_is_refused_for_what_a_start_would_refuse() {
+    let s = Scratch::new("reload-record");
+    let port = free_udp_port();
+    let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\n");
+    let reject = "chain default {\n    reject if ATTITUDE;\n    accept;\n}\n";
+    let mut router = Router::start(&s, &format!("{udp}{reject}"), 1);
+    let a = udp_peer(&mut router, port, 1);
+    let b = udp_peer(&mut router, port, 2);
+    let precious = s.path("precious.conf");
+    std::fs::write(&precious, "keep me\n").expect("write");
+    let text = format!("{udp}record {{ path {precious}; max_files 1; }}\ndefault_action accept;\n");
+    std::fs::write(&router.config, text).expect("write");
+    router.signal(libc::SIGHUP);
+    router
+        .err
+        .wait_for("configuration not reloaded", 10 * SECOND);
+    let located = router
+        .err
+        .wait_for("exists and was not written by mavtables", 10 * SECOND);
+    assert!(located.contains("mavtables.conf:2:"), "{located}");
+    a.send(&attitude(1, 1)).expect("send");
+    a.send(&heartbeat(1)).expect("send");
+    assert_eq!(
+        udp_frames(&b, 1, 5 * SECOND),
+        [heartbeat(1)],
+        "old rules hold"
+    );
+    router.stop();
+    assert_eq!(
+        std::fs::read_to_string(&precious).ok().as_deref(),
+        Some("keep me\n")
+    );
+}
