@@ -13,7 +13,7 @@ fn run(checks: Checks, chunk: usize, data: &[u8]) {
     let mut parser = Parser::with_checks(checks);
     let mut in_frames = 0u64;
     let mut longer = 0u64;
-    let mut json = String::new();
+    let mut json = Vec::new();
     for c in data.chunks(chunk) {
         parser.feed(c, |f| {
             in_frames += f.as_bytes().len() as u64;
@@ -21,7 +21,11 @@ fn run(checks: Checks, chunk: usize, data: &[u8]) {
             assert_eq!(f.header().frame_len(), f.as_bytes().len());
             let _ = (f.target(), f.signature(), f.to_string());
             json.clear();
-            decode::write_json_fields(&mut json, f.info(), f.payload());
+            let fields = decode::Fields {
+                info: f.info(),
+                payload: f.payload(),
+            };
+            serde_json::to_writer(&mut json, &fields).expect("decoded fields always serialize");
         });
     }
     let held = parser.pending_len() as u64;
