@@ -20,6 +20,8 @@ const TOP_LEVEL: &[&str] = &[
     "signing_state",
     "record",
     "stats",
+    "dialect",
+    "unknown_messages",
 ];
 const STATS_STATEMENTS: &[&str] = &["address", "port", "allow"];
 const UDP_STATEMENTS: &[&str] = &[
@@ -198,6 +200,31 @@ impl<'a> Parser<'a> {
                 Ok(Item::SigningState {
                     keyword: span,
                     path,
+                })
+            }
+            "dialect" => {
+                self.c.word();
+                let path = self.path("expected the path of a MAVLink XML dialect file")?;
+                self.semicolon(false)?;
+                Ok(Item::Dialect {
+                    keyword: span,
+                    path,
+                })
+            }
+            "unknown_messages" => {
+                self.c.word();
+                let at = self.c.expected_at();
+                let (value, accept) = match self.c.peek_word() {
+                    Some((s, "accept")) => (s, true),
+                    Some((s, "reject")) => (s, false),
+                    _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
+                };
+                self.c.word();
+                self.semicolon(false)?;
+                Ok(Item::UnknownMessages {
+                    keyword: span,
+                    value,
+                    accept,
                 })
             }
             "record" => {

@@ -94,6 +94,15 @@ impl Printer<'_, '_> {
             }
             Item::Stats { keyword, settings } => self.socket(*keyword, "stats", settings),
             Item::SigningState { path, .. } => self.node(0, *path, "signing_state", Some(*path)),
+            Item::Dialect { path, .. } => self.node(0, *path, "dialect", Some(*path)),
+            Item::UnknownMessages {
+                keyword,
+                value,
+                accept,
+            } => {
+                self.node(0, *keyword, "unknown_messages", None);
+                self.node(1, *value, if *accept { "accept" } else { "reject" }, None);
+            }
             Item::Record { keyword, settings } => {
                 self.node(0, *keyword, "record", None);
                 for s in settings {
