@@ -22,7 +22,7 @@ use std::sync::{Mutex, PoisonError};
 use super::layout::{LaidOut, lay_out};
 use super::table::{Dialect, UNKNOWN_NAME};
 use super::{DIALECT_NAME, Field, MessageInfo, by_id, by_name, xml};
-use crate::files::{read_regular, size_text};
+use crate::files::read_regular;
 
 /// The largest dialect file read (4 MiB; the official `common.xml` is about 600 KiB).
 pub const DIALECT_FILE_LIMIT: u64 = 4 << 20;
@@ -114,16 +114,15 @@ impl Loader {
             )));
         }
         self.visited.insert(canonical);
-        let what = if from.is_some() { "included file " } else { "" };
-        let bytes = read_regular(path, DIALECT_FILE_LIMIT).map_err(|e| {
-            fail(format!(
-                "{what}{} {e} (dialect files are read up to {})",
-                path.display(),
-                size_text(DIALECT_FILE_LIMIT)
-            ))
-        })?;
-        let text = String::from_utf8(bytes)
-            .map_err(|_| fail(format!("{what}{} is not UTF-8 text", path.display())))?;
+        // The included file is named in the message; a top-level one is the error's file.
+        let what = match from {
+            Some(_) => format!("included file {} ", path.display()),
+            None => String::new(),
+        };
+        let bytes =
+            read_regular(path, DIALECT_FILE_LIMIT).map_err(|e| fail(format!("{what}{e}")))?;
+        let text =
+            String::from_utf8(bytes).map_err(|_| fail(format!("{what}is not UTF-8 text")))?;
         let at = |line: usize, message: String| LoadError {
             file: path.to_path_buf(),
             line: Some(line),
