@@ -462,3 +462,77 @@ fn a_reload_picks_up_a_changed_dialect_and_policy() {
     // An unchanged reload changes nothing.
     assert!(!e.configure(&open, &[], t).dialect_changed);
 }
+
+/// The fenced block after `marker` in docs/configuration.md.
+fn doc_block(doc: &str, marker: &str, nth: usize) -> String {
+    let section = doc.split(marker).nth(1).expect("section");
+    let block = section.split("```").nth(1 + 2 * nth).expect("block");
+    block.strip_prefix("xml").unwrap_or(block).to_string()
+}
+
+#[test]
+fn the_documented_custom_payload_example_loads_and_checks_its_frames() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs");
+    let marker = "### A custom payload, worked through";
+    let dir = scratch("doc");
+    write(&dir, "payload.xml", &doc_block(&doc, marker, 0));
+    for f in ["common.xml", "standard.xml", "minimal.xml"] {
+        std::fs::copy(dialects().join(f), dir.join(f)).expect("copy");
+    }
+    let conf = dir.join("mavtables.conf");
+    std::fs::write(&conf, doc_block(&doc, marker, 1)).expect("conf");
+    let from = config::read_file(conf.to_str().expect("utf-8")).unwrap_or_else(|e| panic!("{e}"));
+    let m = from
+        .config
+        .dialect
+        .by_name("MY_PAYLOAD_STATUS")
+        .expect("loaded");
+    assert_eq!((m.id, m.min_len, m.max_len), (60_123, 37, 47));
+    // The same message as the test dialect's (same fields): the same CRC_EXTRA.
+    let test = payload_config("").dialect;
+    assert_eq!(test.by_id(60_123).map(|t| t.crc_extra), Some(m.crc_extra));
+    // And the `unknown_messages` example is a valid configuration.
+    let unknown = doc_block(&doc, "## `unknown_messages`", 1);
+    config::load(&unknown)
+        .unwrap_or_else(|e| panic!("{}", config::render_errors("doc", &unknown, &e)));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn damaged_xml_is_an_error_with_a_line_never_a_panic() {
+    let text = std::fs::read_to_string(dialects().join("payload.xml")).expect("xml");
+    let bytes = text.as_bytes();
+    let lines = text.lines().count() + 1;
+    let mut tried = 0;
+    // Every cut, and a byte changed at many places, in several ways.
+    let mut inputs: Vec<Vec<u8>> = (0..bytes.len())
+        .step_by(7)
+        .map(|n| bytes[..n].to_vec())
+        .collect();
+    for at in (0..bytes.len()).step_by(13) {
+        for b in [b'<', b'>', b'"', b'/', b'9', 0, 0xff, b'&'] {
+            let mut v = bytes.to_vec();
+            v[at] = b;
+            inputs.push(v);
+        }
+    }
+    for input in inputs {
+        let text = String::from_utf8_lossy(&input);
+        match xml::parse(&text) {
+            Ok(file) => {
+                for m in &file.messages {
+                    if let Ok(l) = layout::lay_out(m) {
+                        assert!(l.min_len <= l.max_len);
+                    }
+                }
+            }
+            Err(e) => assert!((1..=lines).contains(&e.line), "{e}"),
+        }
+        tried += 1;
+    }
+    assert!(tried > 1000);
+}
