@@ -1,7 +1,9 @@
 """Parses frames given as hex lines on stdin with pymavlink (the ardupilotmega dialect,
-MAVLink 2 parser, no signing key), one datagram per line, and prints per frame:
-`msgid crc_ok length signed` (crc_ok is `-` for ids pymavlink's dialect lacks, whose
-checksum it cannot check). The independent reader of what mavtables forwarded."""
+no signing key), one datagram per line, and prints per message it finds:
+`TYPE LENGTH` (TYPE as pymavlink names it: `UNKNOWN_<id>` for an id its dialect lacks,
+whose checksum it cannot check; `BAD_DATA` for a frame it refuses, a bad checksum
+included), LENGTH the bytes of the frame it framed (signature included). The independent reader of what
+mavtables forwarded."""
 
 import os
 import sys
@@ -18,18 +20,8 @@ def main():
         msgs = parser.parse_buffer(data) or []
         if not msgs:
             print("none")
-            continue
         for m in msgs:
-            if m.get_type() == "BAD_DATA":
-                reason = getattr(m, "reason", "")
-                # An id pymavlink does not know: framed, checksum unknown to it.
-                if "unknown MAVLink message ID" in reason:
-                    print(data[7] | data[8] << 8 | data[9] << 16, "-", len(data), int(data[2] & 1))
-                else:
-                    print("bad", reason.replace(" ", "_"))
-                continue
-            hdr = m.get_header()
-            print(hdr.msgId, "ok", len(m.get_msgbuf()), int(bool(m._signed)))
+            print(m.get_type(), len(m.get_msgbuf()))
 
 
 main()
