@@ -138,15 +138,7 @@ impl<'a> Parser<'a> {
         };
         match word {
             "default_action" => {
-                self.c.word();
-                let at = self.c.expected_at();
-                let (value, accept) = match self.c.peek_word() {
-                    Some((s, "accept")) => (s, true),
-                    Some((s, "reject")) => (s, false),
-                    _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
-                };
-                self.c.word();
-                self.semicolon(false)?;
+                let (value, accept) = self.accept_or_reject()?;
                 Ok(Item::DefaultAction {
                     keyword: span,
                     value,
@@ -212,15 +204,7 @@ impl<'a> Parser<'a> {
                 })
             }
             "unknown_messages" => {
-                self.c.word();
-                let at = self.c.expected_at();
-                let (value, accept) = match self.c.peek_word() {
-                    Some((s, "accept")) => (s, true),
-                    Some((s, "reject")) => (s, false),
-                    _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
-                };
-                self.c.word();
-                self.semicolon(false)?;
+                let (value, accept) = self.accept_or_reject()?;
                 Ok(Item::UnknownMessages {
                     keyword: span,
                     value,
@@ -243,6 +227,21 @@ impl<'a> Parser<'a> {
             }
             _ => Err(unsupported(span, word, TOP_LEVEL)),
         }
+    }
+
+    /// The rest of `KEYWORD accept|reject;` (the cursor on the keyword): the value word,
+    /// and true for `accept`.
+    fn accept_or_reject(&mut self) -> Result<(Span, bool)> {
+        self.c.word();
+        let at = self.c.expected_at();
+        let (value, accept) = match self.c.peek_word() {
+            Some((s, "accept")) => (s, true),
+            Some((s, "reject")) => (s, false),
+            _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
+        };
+        self.c.word();
+        self.semicolon(false)?;
+        Ok((value, accept))
     }
 
     /// `{ element* }` where each element is read by `element`.

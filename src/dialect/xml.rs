@@ -172,18 +172,18 @@ pub fn parse(text: &str) -> Result<XmlFile, XmlError> {
             }
             Event::Text(t) => {
                 if let Some((path, _)) = w.include.as_mut() {
-                    let s = t
-                        .decode()
-                        .map_err(|e| err(format!("malformed text: {e}")))?;
-                    path.push_str(&s);
+                    path.push_str(
+                        &t.decode()
+                            .map_err(|e| err(format!("malformed text: {e}")))?,
+                    );
                 }
             }
             Event::CData(t) => {
                 if let Some((path, _)) = w.include.as_mut() {
-                    let s = t
-                        .decode()
-                        .map_err(|e| err(format!("malformed text: {e}")))?;
-                    path.push_str(&s);
+                    path.push_str(
+                        &t.decode()
+                            .map_err(|e| err(format!("malformed text: {e}")))?,
+                    );
                 }
             }
             Event::GeneralRef(r) => {
