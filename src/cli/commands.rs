@@ -10,7 +10,8 @@ use crate::address::Subnet;
 use crate::commands::inspect::{self, Failure, Options};
 use crate::commands::replay::{self, ProgressBar, ReplayError, Speed, Target};
 use crate::config::suggest::did_you_mean;
-use crate::dialect;
+use crate::dialect::{Dialect, Loader};
+use std::path::Path;
 
 const INSPECT_USAGE: &str = "\
 usage: mavtables inspect [OPTIONS] FILE...
@@ -24,6 +25,7 @@ usage: mavtables inspect [OPTIONS] FILE...
   --msg NAME[,..]   show only these message types
   --from SUBNET     show only frames from this MAVLink subnet (e.g. 1.0/8)
   --to SUBNET       show only frames targeted into this MAVLink subnet
+  --dialect FILE    also know the messages of this MAVLink XML file (repeatable)
 ";
 
 /// The options of `inspect`, as read by the shared reader.
@@ -36,6 +38,7 @@ const INSPECT_OPTIONS: &[OptionSpec] = &[
     OptionSpec::value("msg"),
     OptionSpec::value("from"),
     OptionSpec::value("to"),
+    OptionSpec::value("dialect"),
 ];
 
 const REPLAY_USAGE: &str = "\
@@ -74,13 +77,12 @@ pub fn run_subcommand(
     })
 }
 
-/// Message ids from a comma-separated list of names.
-fn message_ids(list: &str) -> Result<Vec<u32>, String> {
+/// Message ids from a comma-separated list of names in `dialect`.
+fn message_ids(list: &str, dialect: &Dialect) -> Result<Vec<u32>, String> {
     list.split(',')
         .map(|name| {
-            dialect::by_name(name).map(|m| m.id).ok_or_else(|| {
-                let names = dialect::messages().iter().map(|m| m.name);
-                match did_you_mean(name, names) {
+            dialect.by_name(name).map(|m| m.id).ok_or_else(|| {
+                match did_you_mean(name, dialect.names()) {
                     Some(hint) => format!("unknown message name '{name}'; {hint}"),
                     None => format!("unknown message name '{name}'"),
                 }
@@ -108,6 +110,9 @@ fn subnet(text: &str) -> Result<Subnet, String> {
 fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Result<u8, String> {
     let mut opts = Options::default();
     let mut files = Vec::new();
+    // Names are resolved once every `--dialect` is loaded, wherever they were given.
+    let (mut only, mut msgs) = (None, None);
+    let mut dialects = Loader::new();
     let mut reader = ArgReader::new(args.iter().cloned(), &[INSPECT_OPTIONS]);
     while let Some(arg) = reader.next_arg()? {
         let (name, value) = match arg {
@@ -125,12 +130,22 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
             "json" => opts.json = true,
             "check" => opts.check = true,
             "no-crc" => opts.no_crc = true,
-            "only" => opts.only = Some(message_ids(&value)?),
-            "msg" => opts.msgs = Some(message_ids(&value)?),
+            "only" => only = Some(value),
+            "msg" => msgs = Some(value),
+            "dialect" => dialects
+                .add(Path::new(&value))
+                .map_err(|e| format!("cannot load the dialect: {e}"))?,
             "from" => opts.from = Some(subnet(&value)?),
             "to" => opts.to = Some(subnet(&value)?),
             _ => {}
         }
+    }
+    opts.dialect = dialects.finish();
+    if let Some(list) = only {
+        opts.only = Some(message_ids(&list, &opts.dialect)?);
+    }
+    if let Some(list) = msgs {
+        opts.msgs = Some(message_ids(&list, &opts.dialect)?);
     }
     if files.is_empty() {
         let _ = err.write_all(INSPECT_USAGE.as_bytes());
@@ -168,7 +183,7 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
             }
         } else {
             let summary: &mut dyn Write = if opts.json { &mut *err } else { &mut *out };
-            inspect::write_summary(file, &report, summary)
+            inspect::write_summary_in(file, &report, &opts.dialect, summary)
                 .map_err(|e| format!("writing output: {e}"))?;
         }
     }

@@ -20,7 +20,7 @@ use serde::ser::{Serialize, SerializeMap, Serializer};
 
 use crate::address::{Address, Subnet};
 use crate::capture::{Capture, Format, Unit, Units};
-use crate::dialect::{self, decode};
+use crate::dialect::{Dialect, decode};
 use crate::wire::{Checks, Frame, ParseEvents, Parser, ParserStats, Rejection};
 
 use crate::utc;
@@ -42,6 +42,8 @@ pub struct Options {
     pub from: Option<Subnet>,
     /// Show only frames whose target is in this subnet (frames without one never match).
     pub to: Option<Subnet>,
+    /// The messages known: the built-in table plus `--dialect` files.
+    pub dialect: Dialect,
 }
 
 /// The first thing wrong with a capture, for `--check`.
@@ -273,6 +275,7 @@ impl ParseEvents for Sink<'_> {
 struct Run<'a> {
     sink: Sink<'a>,
     checks: Checks,
+    dialect: Dialect,
     stream: Option<Parser>,
 }
 
@@ -284,7 +287,7 @@ impl Units for Run<'_> {
             Some(parser) => parser.feed_events(unit.bytes, sink),
             None => {
                 sink.base = unit.offset;
-                let mut parser = Parser::with_checks(self.checks);
+                let mut parser = Parser::with_checks(self.checks).with_dialect(self.dialect);
                 parser.feed_events(unit.bytes, sink);
                 parser.finish(sink);
                 sink.report.stats += *parser.stats();
@@ -307,6 +310,7 @@ fn checks(opts: &Options) -> Checks {
     Checks {
         crc: !opts.no_crc,
         known_length: opts.check,
+        accept_unknown: false,
     }
 }
 
@@ -332,7 +336,9 @@ pub fn inspect(input: impl Read, opts: &Options, out: &mut dyn Write) -> Result<
             junk_problem: None,
         },
         checks,
-        stream: (format == Format::Raw).then(|| Parser::with_checks(checks)),
+        dialect: opts.dialect,
+        stream: (format == Format::Raw)
+            .then(|| Parser::with_checks(checks).with_dialect(opts.dialect)),
     };
     let end = capture.read(&mut run).map_err(Failure::Input)?;
     let mut sink = run.sink;
@@ -361,6 +367,16 @@ pub fn inspect(input: impl Read, opts: &Options, out: &mut dyn Write) -> Result<
 
 /// Writes the end-of-file summary of `report` for the capture called `name`.
 pub fn write_summary(name: &str, report: &Report, out: &mut dyn Write) -> io::Result<()> {
+    write_summary_in(name, report, &Dialect::builtin(), out)
+}
+
+/// [`write_summary`], naming messages from `dialect`.
+pub fn write_summary_in(
+    name: &str,
+    report: &Report,
+    dialect: &Dialect,
+    out: &mut dyn Write,
+) -> io::Result<()> {
     let s = &report.stats;
     writeln!(
         out,
@@ -371,7 +387,7 @@ pub fn write_summary(name: &str, report: &Report, out: &mut dyn Write) -> io::Re
     if !report.per_message.is_empty() {
         writeln!(out, "  messages:")?;
         for (id, n) in &report.per_message {
-            let name = dialect::by_id(*id).map_or("?", |m| m.name);
+            let name = dialect.by_id(*id).map_or("?", |m| m.name);
             writeln!(out, "    {n:>8}  {name} (#{id})")?;
         }
         writeln!(out, "  sources:")?;

@@ -82,6 +82,23 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<RecordSetting>,
     },
+    /// `dialect PATH;`: MAVLink XML message definitions to load (repeatable).
+    Dialect {
+        /// The `dialect` keyword.
+        keyword: Span,
+        /// The path, as written.
+        path: Span,
+    },
+    /// `unknown_messages accept|reject;`: what becomes of frames whose id no dialect
+    /// defines.
+    UnknownMessages {
+        /// The `unknown_messages` keyword.
+        keyword: Span,
+        /// The value word.
+        value: Span,
+        /// True for `accept`.
+        accept: bool,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.

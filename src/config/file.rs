@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use super::{
-    Config, StateFileError, check_record_path, check_signing_state, load, read_keys, read_source,
-    render_errors,
+    Config, StateFileError, check_record_path, check_signing_state, load_in, read_keys,
+    read_source, render_errors,
 };
 use crate::signing::SigningKey;
 
@@ -30,7 +30,8 @@ pub struct FromFile {
 pub fn read_file(path: &str) -> Result<FromFile, String> {
     let src = read_source(Path::new(path))
         .map_err(|e| format!("error: configuration file {path} {e}\n"))?;
-    let loaded = load(&src).map_err(|errors| render_errors(path, &src, &errors))?;
+    let dir = Path::new(path).parent().unwrap_or(Path::new(""));
+    let loaded = load_in(&src, dir).map_err(|errors| render_errors(path, &src, &errors))?;
     // Keys are read for --check too, so a deploy script learns of an unreadable or
     // unprotected key before the service starts; nothing of a key is ever printed. The
     // signing state file is checked with them: a device, FIFO or huge file there is

@@ -75,9 +75,17 @@ impl Span {
 
 /// Parses and checks a configuration source: the configuration and its warnings, or every
 /// error found (a syntax error stops at the first one).
+/// `dialect` files are read relative to the working directory; see [`load_in`].
 pub fn load(src: &str) -> Result<Loaded, Vec<Diagnostic>> {
     let ast = parse(src).map_err(|d| vec![d])?;
     semantics::analyse(&ast)
+}
+
+/// [`load`] for a configuration file in directory `dir` (relative `dialect` paths are
+/// taken from there).
+pub fn load_in(src: &str, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> {
+    let ast = parse(src).map_err(|d| vec![d])?;
+    semantics::analyse_in(&ast, dir)
 }
 
 /// Renders `errors` one after the other, each located in `file`.

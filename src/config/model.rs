@@ -1,6 +1,8 @@
 //! The meaning of a configuration: typed, validated values the router runs from.
 
 use crate::address::{Address, Subnet};
+use crate::dialect::Dialect;
+use crate::wire::Checks;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
@@ -26,6 +28,23 @@ pub struct Config {
     pub record: Option<Recording>,
     /// The statistics endpoint (the `stats` block), if configured.
     pub stats: Option<StatsEndpoint>,
+    /// The messages known: the built-in table plus the `dialect` files.
+    pub dialect: Dialect,
+    /// The files of the `dialect` statements, resolved, in order.
+    pub dialect_files: Vec<PathBuf>,
+    /// What becomes of frames whose id no dialect defines (`unknown_messages`).
+    pub unknown_messages: UnknownMessages,
+}
+
+/// `unknown_messages accept|reject;`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UnknownMessages {
+    /// Dropped and counted (the default).
+    #[default]
+    Reject,
+    /// Forwarded byte for byte as broadcasts, through the chains (rules name them
+    /// `UNKNOWN`); their checksum cannot be checked.
+    Accept,
 }
 
 impl Config {
@@ -45,6 +64,18 @@ impl Config {
             signing_state: None,
             record: None,
             stats: None,
+            dialect: Dialect::builtin(),
+            dialect_files: Vec::new(),
+            unknown_messages: UnknownMessages::Reject,
+        }
+    }
+
+    /// What the parsers of this configuration check: as a router does, plus frames of
+    /// unknown ids under `unknown_messages accept;`.
+    pub fn checks(&self) -> Checks {
+        Checks {
+            accept_unknown: self.unknown_messages == UnknownMessages::Accept,
+            ..Checks::ROUTING
         }
     }
 

@@ -20,6 +20,8 @@ const TOP_LEVEL: &[&str] = &[
     "signing_state",
     "record",
     "stats",
+    "dialect",
+    "unknown_messages",
 ];
 const STATS_STATEMENTS: &[&str] = &["address", "port", "allow"];
 const UDP_STATEMENTS: &[&str] = &[
@@ -136,15 +138,7 @@ impl<'a> Parser<'a> {
         };
         match word {
             "default_action" => {
-                self.c.word();
-                let at = self.c.expected_at();
-                let (value, accept) = match self.c.peek_word() {
-                    Some((s, "accept")) => (s, true),
-                    Some((s, "reject")) => (s, false),
-                    _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
-                };
-                self.c.word();
-                self.semicolon(false)?;
+                let (value, accept) = self.accept_or_reject()?;
                 Ok(Item::DefaultAction {
                     keyword: span,
                     value,
@@ -200,6 +194,23 @@ impl<'a> Parser<'a> {
                     path,
                 })
             }
+            "dialect" => {
+                self.c.word();
+                let path = self.path("expected the path of a MAVLink XML dialect file")?;
+                self.semicolon(false)?;
+                Ok(Item::Dialect {
+                    keyword: span,
+                    path,
+                })
+            }
+            "unknown_messages" => {
+                let (value, accept) = self.accept_or_reject()?;
+                Ok(Item::UnknownMessages {
+                    keyword: span,
+                    value,
+                    accept,
+                })
+            }
             "record" => {
                 self.c.word();
                 let settings = self.block(span, Self::record_setting)?;
@@ -216,6 +227,21 @@ impl<'a> Parser<'a> {
             }
             _ => Err(unsupported(span, word, TOP_LEVEL)),
         }
+    }
+
+    /// The rest of `KEYWORD accept|reject;` (the cursor on the keyword): the value word,
+    /// and true for `accept`.
+    fn accept_or_reject(&mut self) -> Result<(Span, bool)> {
+        self.c.word();
+        let at = self.c.expected_at();
+        let (value, accept) = match self.c.peek_word() {
+            Some((s, "accept")) => (s, true),
+            Some((s, "reject")) => (s, false),
+            _ => return Err(self.value_error(at, "expected 'accept' or 'reject'")),
+        };
+        self.c.word();
+        self.semicolon(false)?;
+        Ok((value, accept))
     }
 
     /// `{ element* }` where each element is read by `element`.

@@ -61,10 +61,7 @@ impl Printer<'_, '_> {
                 keyword,
                 value,
                 accept,
-            } => {
-                self.node(0, *keyword, "default_action", None);
-                self.node(1, *value, if *accept { "accept" } else { "reject" }, None);
-            }
+            } => self.accept_or_reject(*keyword, "default_action", *value, *accept),
             Item::Udp { keyword, settings } => self.socket(*keyword, "udp", settings),
             Item::Tcp { keyword, settings } => self.socket(*keyword, "tcp", settings),
             Item::Serial { keyword, settings } => {
@@ -94,6 +91,12 @@ impl Printer<'_, '_> {
             }
             Item::Stats { keyword, settings } => self.socket(*keyword, "stats", settings),
             Item::SigningState { path, .. } => self.node(0, *path, "signing_state", Some(*path)),
+            Item::Dialect { path, .. } => self.node(0, *path, "dialect", Some(*path)),
+            Item::UnknownMessages {
+                keyword,
+                value,
+                accept,
+            } => self.accept_or_reject(*keyword, "unknown_messages", *value, *accept),
             Item::Record { keyword, settings } => {
                 self.node(0, *keyword, "record", None);
                 for s in settings {
@@ -118,6 +121,12 @@ impl Printer<'_, '_> {
                 }
             }
         }
+    }
+
+    /// `NAME accept|reject;`: the statement node, then the value node below it.
+    fn accept_or_reject(&mut self, keyword: Span, name: &str, value: Span, accept: bool) {
+        self.node(0, keyword, name, None);
+        self.node(1, value, if accept { "accept" } else { "reject" }, None);
     }
 
     /// A `udp` or `tcp` block: the block node, then one node per statement with its raw

@@ -13,8 +13,9 @@ use super::model::*;
 use super::sockets::{self, Kind};
 use super::{Span, suggest};
 use crate::address::{Address, PrefixMask, Subnet};
-use crate::dialect;
+use crate::dialect::{Dialect, Loader, UNKNOWN_ID, UNKNOWN_NAME};
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 /// A valid configuration plus the warnings found while checking it.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -25,8 +26,15 @@ pub struct Loaded {
     pub warnings: Vec<String>,
 }
 
-/// Checks `ast` and builds the configuration, or returns every error found.
+/// Checks `ast` and builds the configuration, or returns every error found. The
+/// `dialect` files it names are read relative to the working directory.
 pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
+    analyse_in(ast, Path::new(""))
+}
+
+/// [`analyse`] for a configuration file in directory `dir`: relative `dialect` paths
+/// are taken from there.
+pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> {
     let mut cx = Checker {
         ast,
         errors: Vec::new(),
@@ -34,8 +42,13 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
         names: Vec::new(),
         edges: Vec::new(),
         lines: LineIndex::new(ast.src),
+        dialect: Dialect::builtin(),
+        names_unknown: false,
     };
     cx.register_chains();
+    // Dialects first, wherever they are written: rules anywhere may name their messages.
+    let dialect_files = cx.load_dialects(dir);
+    let mut unknown_messages = UnknownMessages::Reject;
     let mut default_action = DefaultAction::Reject;
     let mut interfaces = Vec::new();
     // What the interfaces so far hold, with the line of their keyword, to catch two
@@ -117,6 +130,14 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             Item::SigningState { path, .. } => {
                 signing_state = Some(ast.text(*path).to_string());
             }
+            Item::Dialect { .. } => {} // loaded above
+            Item::UnknownMessages { accept, .. } => {
+                unknown_messages = if *accept {
+                    UnknownMessages::Accept
+                } else {
+                    UnknownMessages::Reject
+                };
+            }
             Item::Record { keyword, settings } => {
                 if let Some(first) = record_line {
                     cx.error(
@@ -165,6 +186,11 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             ChainId(chains.len() - 1)
         }
     };
+    if cx.names_unknown && unknown_messages == UnknownMessages::Reject {
+        warnings.push(format!(
+            "rules name {UNKNOWN_NAME}, which matches nothing unless 'unknown_messages accept;' is set"
+        ));
+    }
     cx.find_cycles();
     if !cx.errors.is_empty() {
         return Err(cx.errors);
@@ -179,6 +205,9 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
             signing_state,
             record,
             stats,
+            dialect: cx.dialect,
+            dialect_files,
+            unknown_messages,
         },
         warnings,
     })
@@ -199,6 +228,10 @@ struct Checker<'a, 'b> {
     names: Vec<(&'a str, Span)>,
     edges: Vec<Edge>,
     lines: LineIndex,
+    /// The messages rules may name: built in, and from the `dialect` files.
+    dialect: Dialect,
+    /// A rule or `only` condition names `UNKNOWN`.
+    names_unknown: bool,
 }
 
 impl<'a> Checker<'a, '_> {
@@ -513,14 +546,16 @@ impl<'a> Checker<'a, '_> {
             None => Some(None),
             Some(span) => {
                 let name = self.text(span);
-                match dialect::by_name(name) {
+                match self.dialect.by_name(name) {
                     Some(info) => Some(Some(info.id)),
+                    None if name == UNKNOWN_NAME => {
+                        self.names_unknown = true;
+                        Some(Some(UNKNOWN_ID))
+                    }
                     None => {
                         let mut d =
                             Diagnostic::new(span, format!("Invalid packet name (\"{name}\")."));
-                        if let Some(note) =
-                            suggest::did_you_mean(name, dialect::messages().iter().map(|m| m.name))
-                        {
+                        if let Some(note) = suggest::did_you_mean(name, self.dialect.names()) {
                             d = d.with_note(note);
                         }
                         self.error(d);
@@ -543,6 +578,37 @@ impl<'a> Checker<'a, '_> {
             source: source?,
             dest: dest?,
         })
+    }
+
+    /// Loads the files of the `dialect` statements (relative ones from `dir`) into
+    /// `self.dialect`; a file that cannot be loaded is an error at its statement.
+    /// Returns the files, resolved.
+    fn load_dialects(&mut self, dir: &Path) -> Vec<PathBuf> {
+        let mut loader = Loader::new();
+        let mut files = Vec::new();
+        for item in &self.ast.items {
+            let Item::Dialect { path, .. } = item else {
+                continue;
+            };
+            let written = Path::new(self.text(*path));
+            let file = dir.join(written);
+            if let Err(e) = loader.add(&file) {
+                let mut d = Diagnostic::new(*path, format!("cannot load the dialect: {e}"));
+                if written.is_relative() {
+                    let dir = match dir.to_str() {
+                        Some("") => ".".to_string(),
+                        _ => dir.display().to_string(),
+                    };
+                    d = d.with_note(format!(
+                        "a relative path is taken from the configuration file's directory ({dir})"
+                    ));
+                }
+                self.error(d);
+            }
+            files.push(file);
+        }
+        self.dialect = loader.finish();
+        files
     }
 
     /// Reports every `call`/`goto` loop (found by an iterative depth-first search, so a

@@ -4,11 +4,20 @@
 //! layout in wire order so tools can decode any field.
 //!
 //! The table in `ardupilotmega.rs` is generated from the official MAVLink XML by
-//! `tools/gen-dialect` (see its README) and committed; nothing here parses XML at
-//! run time.
+//! `tools/gen-dialect` (see its README) and committed. Further messages are loaded from
+//! MAVLink XML at run time (`dialect PATH;` in the configuration, `inspect --dialect`):
+//! [`load`] reads the files, [`xml`] their elements, [`layout`] computes wire order,
+//! lengths and CRC_EXTRA, and [`Dialect`] looks messages up, built-in ones first.
 
 mod ardupilotmega;
 pub mod decode;
+pub mod layout;
+pub mod load;
+pub mod table;
+pub mod xml;
+
+pub use load::{DIALECT_FILE_LIMIT, LoadError, Loader, load_files};
+pub use table::{Dialect, SETUP_SIGNING_ID, UNKNOWN_ID, UNKNOWN_MESSAGE, UNKNOWN_NAME};
 
 /// The wire type of one message field (arrays carry their length in [`Field::array_len`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

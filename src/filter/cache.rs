@@ -17,8 +17,9 @@ pub const DEFAULT_SLOTS: usize = 4096;
 /// Marks an occupied slot; message ids use only the low 24 bits of their 32.
 const VALID: u64 = 1 << 63;
 
-/// Set in the key of a signed packet's verdict (bit 56, above any 24-bit message id).
-const SIGNED: u64 = 1 << 56;
+/// Set in the key of a signed packet's verdict (bit 60: above any 24-bit message id and
+/// the id 2^24 that stands for every unknown one, `dialect::UNKNOWN_ID`).
+const SIGNED: u64 = 1 << 60;
 
 /// Lookup counters of a [`VerdictCache`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -7,6 +7,10 @@
 //! into "default", which ends evaluation with the default action. A priority on `call`/`goto` is attached only
 //! to an accept that has none yet (innermost explicit priority wins). Unset priority is 0.
 //!
+//! `SETUP_SIGNING` carries a signing key in the clear: an `accept` rule takes it only if
+//! its condition names it (`accept if SETUP_SIGNING ...`), and the default action never
+//! accepts it; every other rule treats it as any packet.
+//!
 //! The walk uses an explicit stack, never recursion, and gives up with
 //! [`Verdict::Reject`] when the stack is deeper than the number of chains: an acyclic
 //! model can never get there (each chain appears at most once on a call path), so only a
@@ -14,7 +18,8 @@
 
 use super::Verdict;
 use crate::address::Address;
-use crate::config::{Action, Chain, Config, DefaultAction};
+use crate::config::{Action, Chain, Condition, Config, DefaultAction};
+use crate::dialect::SETUP_SIGNING_ID;
 
 /// What a chain (or rule) evaluates to before the default action is applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,6 +44,15 @@ struct CallFrame {
     chain: usize,
     next_rule: usize,
     entry: Entry,
+}
+
+/// True when `action` with `condition` may not take a packet of `message_id`: an
+/// `accept` that does not name `SETUP_SIGNING` does not take it.
+#[inline]
+fn withheld(message_id: u32, action: Action, condition: &Condition) -> bool {
+    message_id == SETUP_SIGNING_ID
+        && action == Action::Accept
+        && condition.message_id != Some(SETUP_SIGNING_ID)
 }
 
 /// The chains of a configuration, ready to evaluate (no memo; see [`super::Filter`]).
@@ -110,8 +124,8 @@ impl Evaluator {
             Outcome::Accept(p) => Verdict::Accept(p.unwrap_or(0)),
             Outcome::Reject => Verdict::Reject,
             Outcome::Continue | Outcome::Default => match self.default_action {
-                DefaultAction::Accept => Verdict::Accept(0),
-                DefaultAction::Reject => Verdict::Reject,
+                DefaultAction::Accept if message_id != SETUP_SIGNING_ID => Verdict::Accept(0),
+                DefaultAction::Accept | DefaultAction::Reject => Verdict::Reject,
             },
         }
     }
@@ -139,7 +153,9 @@ impl Evaluator {
                 None => Outcome::Continue,
                 Some(rule) => {
                     top.next_rule += 1;
-                    if !rule.condition.matches(message_id, source, dest, signed) {
+                    if !rule.condition.matches(message_id, source, dest, signed)
+                        || withheld(message_id, rule.action, &rule.condition)
+                    {
                         continue;
                     }
                     let number = self
@@ -319,9 +335,7 @@ mod tests {
             ],
             default_chain: ChainId(0),
             queue: QueueBounds::default(),
-            signing_state: None,
-            record: None,
-            stats: None,
+            ..Config::accept_all(vec![])
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(
@@ -353,9 +367,7 @@ mod tests {
             }],
             default_chain: ChainId(3),
             queue: QueueBounds::default(),
-            signing_state: None,
-            record: None,
-            stats: None,
+            ..Config::accept_all(vec![])
         };
         let mut e = Evaluator::new(&config);
         assert_eq!(

@@ -24,7 +24,8 @@ impl RecordFilter {
         if self.only.is_empty() {
             return true;
         }
-        let (id, source) = (frame.message_id(), frame.source());
+        // The filter's id: `UNKNOWN` matches every frame of an unknown id.
+        let (id, source) = (frame.info().id, frame.source());
         self.only.iter().any(|c| {
             c.signed.is_none_or(|s| s == signed)
                 && c.message_id.is_none_or(|m| m == id)

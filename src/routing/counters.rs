@@ -24,6 +24,12 @@ pub struct LinkCounters {
     pub bad_crc: u64,
     /// Frames from the link dropped for a message id outside the dialect.
     pub unknown_id: u64,
+    /// Frames from the link of an id no dialect defines, taken in under
+    /// `unknown_messages accept;` (their checksum unchecked).
+    pub unknown_accepted: u64,
+    /// `SETUP_SIGNING` frames from the link forwarded nowhere: it carries a signing key
+    /// in the clear, so only a rule naming it forwards it.
+    pub setup_signing: u64,
     /// (Frame, this link) offers the filter rejected for every candidate address: the
     /// frames that would have gone to this link but for a rule or the default action.
     pub filter_rejected: u64,
@@ -78,6 +84,12 @@ impl fmt::Display for LinkReport<'_> {
             self.queue_high_water,
             c.bad_crc
         )?;
+        if c.unknown_accepted > 0 {
+            write!(f, ", {} unknown ids accepted", c.unknown_accepted)?;
+        }
+        if c.setup_signing > 0 {
+            write!(f, ", {} SETUP_SIGNING not forwarded", c.setup_signing)?;
+        }
         if !c.signing.is_zero() {
             write!(f, ", {}", c.signing)?;
         }

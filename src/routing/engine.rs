@@ -407,7 +407,10 @@ impl Engine {
         self.signing.take_state(clean)
     }
 
-    fn push_interface(&mut self, interface: Interface) -> InterfaceId {
+    fn push_interface(&mut self, mut interface: Interface) -> InterfaceId {
+        // The messages and checks of the configuration in force (see `set_parsing`).
+        interface.parser.set_dialect(self.config.dialect);
+        interface.parser.set_checks(self.config.checks());
         InterfaceId(self.interfaces.insert(interface))
     }
 

@@ -20,17 +20,26 @@ use crate::wire::{Frame, ParseEvents, Rejection};
 /// flood of random ids can neither fill the log nor grow memory.
 pub const MAX_REPORTED_IDS: usize = 1024;
 
+/// What the first unknown-id report adds: how to let such frames through.
+pub const UNKNOWN_ID_HINT: &str = "frames of message ids no dialect defines are dropped; \
+to forward them add 'dialect FILE.xml;' (MAVLink XML defining them) or \
+'unknown_messages accept;' to the configuration";
+
 /// Message ids already reported as unknown (once per id, not per frame).
 #[derive(Debug, Default)]
 pub struct UnknownIds(HashSet<u32>);
 
 impl UnknownIds {
-    /// Reports `id` the first time it is seen.
+    /// Reports `id` the first time it is seen (the first report says how to let such
+    /// frames through).
     pub fn report(&mut self, id: u32, notices: &mut VecDeque<Notice>) {
         if self.0.len() >= MAX_REPORTED_IDS || !self.0.insert(id) {
             return;
         }
         notices.push_back(Notice::UnknownId(id));
+        if self.0.len() == 1 {
+            notices.push_back(Notice::Warning(UNKNOWN_ID_HINT.to_string()));
+        }
         if self.0.len() == MAX_REPORTED_IDS {
             notices.push_back(Notice::Warning(format!(
                 "{MAX_REPORTED_IDS} unknown message ids reported; further ones are only counted"
@@ -146,8 +155,15 @@ impl ParseEvents for Intake<'_> {
             tap.offer(&frame, signed, self.now);
         }
         let id = self.link();
-        if signed && let Some(c) = self.router.counters_mut(id) {
-            c.signing.verified += 1;
+        if (signed || frame.is_unknown())
+            && let Some(c) = self.router.counters_mut(id)
+        {
+            if signed {
+                c.signing.verified += 1;
+            }
+            if frame.is_unknown() {
+                c.unknown_accepted += 1;
+            }
         }
         self.router
             .receive_as(id, &frame, signed, self.now, self.out);
@@ -218,7 +234,8 @@ mod tests {
             u.report(id, &mut notices);
         }
         assert_eq!(u.0.len(), MAX_REPORTED_IDS);
-        // One notice per id, and one warning that the rest are only counted.
-        assert_eq!(notices.len(), MAX_REPORTED_IDS + 1);
+        // One notice per id, the hint after the first, and one warning that the rest
+        // are only counted.
+        assert_eq!(notices.len(), MAX_REPORTED_IDS + 2);
     }
 }

@@ -15,6 +15,7 @@ use super::sources::{Sequences, SourceTable};
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
+use crate::dialect::SETUP_SIGNING_ID;
 use crate::filter::{CacheStats, Filter, FilterCounts, cache};
 use crate::wire::Frame;
 
@@ -255,6 +256,8 @@ impl Router {
         let level = self.options.event_level;
         let src = frame.source();
         let message_id = frame.message_id();
+        // What the filter matches: the id, or the one id of all unknown ones.
+        let filter_id = frame.info().id;
         let target = frame.target();
         let summary = PacketSummary::of(frame);
 
@@ -279,6 +282,7 @@ impl Router {
 
         let mut packet: Option<Packet> = None;
         let mut routed = false;
+        let mut forwarded = false;
         for i in 0..self.links.len() {
             let link = &self.links[i];
             let decision = decide(
@@ -286,7 +290,7 @@ impl Router {
                 &link.pool,
                 link.reaches_the_unknown(),
                 now,
-                message_id,
+                filter_id,
                 src,
                 target,
                 signed,
@@ -296,6 +300,7 @@ impl Router {
                 Decision::Silent => {}
                 Decision::Accept(priority) => {
                     routed = true;
+                    forwarded = true;
                     let bytes = packet
                         .get_or_insert_with(|| Arc::from(frame.as_bytes()))
                         .clone();
@@ -326,6 +331,9 @@ impl Router {
         }
         if !routed {
             self.links[si].counters.no_route += 1;
+        }
+        if filter_id == SETUP_SIGNING_ID && !forwarded {
+            self.links[si].counters.setup_signing += 1;
         }
     }
 

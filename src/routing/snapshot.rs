@@ -136,6 +136,7 @@ pub fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
                     send_error: c.send_errors,
                     bad_crc: c.bad_crc,
                     unknown_id: c.unknown_id,
+                    setup_signing: c.setup_signing,
                     bad_signature: c.signing.bad_signature,
                     replayed: c.signing.replayed,
                     out_of_window: c.signing.out_of_window,

@@ -5,7 +5,7 @@
 
 use crate::address::{Address, Subnet};
 use crate::config::{Action, Config, Rule};
-use crate::dialect;
+use crate::dialect::{UNKNOWN_ID, UNKNOWN_NAME};
 
 /// The text of `rule` in `config` (whose chains name `call` and `goto` targets).
 pub fn rule_text(config: &Config, rule: &Rule) -> String {
@@ -32,7 +32,12 @@ pub fn rule_text(config: &Config, rule: &Rule) -> String {
         None => {}
     }
     if let Some(id) = c.message_id {
-        cond.push(dialect::by_id(id).map_or_else(|| id.to_string(), |m| m.name.to_string()));
+        let name = match config.dialect.by_id(id) {
+            Some(m) => m.name.to_string(),
+            None if id == UNKNOWN_ID => UNKNOWN_NAME.to_string(),
+            None => id.to_string(),
+        };
+        cond.push(name);
     }
     if let Some(from) = c.source {
         cond.push(format!("from {}", subnet_text(from)));

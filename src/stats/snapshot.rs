@@ -62,11 +62,14 @@ pub struct Drops {
     pub out_of_window: u64,
     /// Unsigned frames from this link where signing is required.
     pub unsigned: u64,
+    /// `SETUP_SIGNING` frames from this link forwarded nowhere (only a rule naming it
+    /// forwards it: it carries a signing key in the clear).
+    pub setup_signing: u64,
 }
 
 impl Drops {
     /// The reasons with their names, in the JSON's order.
-    pub fn named(&self) -> [(&'static str, u64); 10] {
+    pub fn named(&self) -> [(&'static str, u64); 11] {
         [
             ("filter_rejected", self.filter_rejected),
             ("no_route", self.no_route),
@@ -78,6 +81,7 @@ impl Drops {
             ("replayed", self.replayed),
             ("out_of_window", self.out_of_window),
             ("unsigned", self.unsigned),
+            ("setup_signing", self.setup_signing),
         ]
     }
 }

@@ -7,10 +7,15 @@
 //! [`Checks::STRICT`] (for `inspect --check`) rejects it instead, and so does a check
 //! without checksums, which has nothing to vouch for the longer length. A MAVLink 1 frame
 //! never carries extensions: a length above the message's is always rejected.
+//!
+//! Messages are looked up in a [`Dialect`] (the built-in table plus loaded dialects). A
+//! frame whose id none of them defines is rejected, unless [`Checks::accept_unknown`]
+//! (`unknown_messages accept;`): then it is framed by its length byte alone, as any id
+//! may have any length, and its checksum cannot be checked (no CRC_EXTRA is known).
 
 use std::fmt;
 
-use crate::dialect::{self, MessageInfo};
+use crate::dialect::{self, Dialect, MessageInfo, UNKNOWN_MESSAGE};
 
 use super::crc::frame_checksum;
 use super::header::{self, CHECKSUM_START, INCOMPAT_SIGNED, Layout, MAGIC_V2};
@@ -87,6 +92,10 @@ pub struct Checks {
     /// Reject a v2 frame longer than its message's known length
     /// ([`Rejection::LongerThanKnown`]) instead of accepting it.
     pub known_length: bool,
+    /// Frame a message id no dialect defines by its length byte and hand it out
+    /// (described by [`UNKNOWN_MESSAGE`], its checksum unchecked) instead of rejecting it
+    /// ([`Rejection::UnknownId`]).
+    pub accept_unknown: bool,
 }
 
 impl Checks {
@@ -94,11 +103,13 @@ impl Checks {
     pub const ROUTING: Checks = Checks {
         crc: true,
         known_length: false,
+        accept_unknown: false,
     };
     /// What `inspect --check` checks: checksums, and no frame longer than known.
     pub const STRICT: Checks = Checks {
         crc: true,
         known_length: true,
+        accept_unknown: false,
     };
 }
 
@@ -125,17 +136,17 @@ pub(crate) enum Candidate {
 /// than its message's known length when that is allowed: only the checksum, at the end,
 /// can tell such a frame from a corrupt length byte.
 #[inline]
-pub(crate) fn check_candidate(s: &[u8], checks: Checks) -> Candidate {
+pub(crate) fn check_candidate(s: &[u8], checks: Checks, dialect: &Dialect) -> Candidate {
     // One copy of the checks per version, each with its layout known at compile time.
     if s[0] == MAGIC_V2 {
-        check_with(&header::V2, s, checks)
+        check_with(&header::V2, s, checks, dialect)
     } else {
-        check_with(&header::V1, s, checks)
+        check_with(&header::V1, s, checks, dialect)
     }
 }
 
 #[inline(always)]
-fn check_with(l: &'static Layout, s: &[u8], checks: Checks) -> Candidate {
+fn check_with(l: &'static Layout, s: &[u8], checks: Checks, dialect: &Dialect) -> Candidate {
     if s.len() < l.header_len {
         return Candidate::NeedMore(l.header_len);
     }
@@ -146,7 +157,10 @@ fn check_with(l: &'static Layout, s: &[u8], checks: Checks) -> Candidate {
         return Candidate::Reject(Rejection::BadFlags(flags));
     }
     let id = l.read_message_id(s);
-    let Some(info) = dialect::by_id(id) else {
+    let Some(info) = dialect.by_id(id) else {
+        if checks.accept_unknown {
+            return unknown_id(l, s, id, len, flags);
+        }
         return Candidate::Reject(Rejection::UnknownId(id));
     };
     // v1 carries the whole base payload (extensions allowed); v2 may drop trailing zero
@@ -172,4 +186,18 @@ fn check_with(l: &'static Layout, s: &[u8], checks: Checks) -> Candidate {
         return Candidate::Reject(Rejection::BadCrc);
     }
     Candidate::Frame(total, info)
+}
+
+/// A frame of an id no dialect defines, accepted as such: framed by its length byte (a
+/// v2 payload is never empty), its checksum unchecked.
+#[cold]
+fn unknown_id(l: &'static Layout, s: &[u8], id: u32, len: u8, flags: u8) -> Candidate {
+    if l.magic == MAGIC_V2 && len == 0 {
+        return Candidate::Reject(Rejection::BadLength { id, len });
+    }
+    let total = l.frame_len(len, flags);
+    if s.len() < total {
+        return Candidate::NeedMore(total);
+    }
+    Candidate::Frame(total, &UNKNOWN_MESSAGE)
 }

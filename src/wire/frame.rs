@@ -4,7 +4,7 @@
 use std::fmt;
 
 use crate::address::Address;
-use crate::dialect::MessageInfo;
+use crate::dialect::{Dialect, MessageInfo, UNKNOWN_ID};
 
 use super::check::{Candidate, Checks, check_candidate};
 use super::header::{HeaderRepr, Layout};
@@ -60,6 +60,11 @@ impl<'a> Frame<'a> {
     /// Checks that `bytes` is exactly one valid frame (checksum included) and views it.
     /// As for a router, a v2 frame longer than its message's known length is valid.
     pub fn parse_exact(bytes: &'a [u8]) -> Result<Self, ExactError> {
+        Frame::parse_exact_in(bytes, &Dialect::builtin())
+    }
+
+    /// [`Frame::parse_exact`] knowing the messages of `dialect`.
+    pub fn parse_exact_in(bytes: &'a [u8], dialect: &Dialect) -> Result<Self, ExactError> {
         match bytes.first() {
             None => {
                 return Err(ExactError::Rejected(Rejection::Truncated {
@@ -70,7 +75,7 @@ impl<'a> Frame<'a> {
             Some(&b) if Version::from_magic(b).is_none() => return Err(ExactError::BadMagic(b)),
             Some(_) => {}
         }
-        match check_candidate(bytes, Checks::ROUTING) {
+        match check_candidate(bytes, Checks::ROUTING, dialect) {
             Candidate::NeedMore(needed) => Err(ExactError::Rejected(Rejection::Truncated {
                 needed,
                 have: bytes.len(),
@@ -95,13 +100,15 @@ impl<'a> Frame<'a> {
         self.offset
     }
 
-    /// Dialect facts about the frame's message.
+    /// Dialect facts about the frame's message ([`crate::dialect::UNKNOWN_MESSAGE`] for
+    /// an id no dialect defines, accepted under `unknown_messages accept;`). Its `id` is
+    /// what the filter matches: the message id, or [`UNKNOWN_ID`] for such a frame.
     #[inline]
     pub fn info(&self) -> &'static MessageInfo {
         self.info
     }
 
-    /// Message name, e.g. `HEARTBEAT`.
+    /// Message name, e.g. `HEARTBEAT` (`UNKNOWN` for an id no dialect defines).
     #[inline]
     pub fn name(&self) -> &'static str {
         self.info.name
@@ -178,10 +185,21 @@ impl<'a> Frame<'a> {
         self.payload_len() > self.info.max_len as usize
     }
 
-    /// Message id.
+    /// Message id (as on the wire, also for an id no dialect defines).
     #[inline]
     pub fn message_id(&self) -> u32 {
-        self.info.id
+        let id = self.info.id;
+        if id != UNKNOWN_ID {
+            return id;
+        }
+        self.layout().read_message_id(self.bytes)
+    }
+
+    /// True for a frame of an id no dialect defines (accepted under
+    /// `unknown_messages accept;`, its checksum unchecked).
+    #[inline]
+    pub fn is_unknown(&self) -> bool {
+        self.info.id == UNKNOWN_ID
     }
 
     /// The payload as sent (possibly truncated in v2: missing bytes read as zero; or

@@ -23,6 +23,7 @@ use std::ops::AddAssign;
 use super::check::{Candidate, Checks, Rejection, check_candidate};
 use super::frame::Frame;
 use super::header::{MAX_FRAME_LEN, Version};
+use crate::dialect::Dialect;
 
 /// Running totals of what a parser has seen.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -156,6 +157,8 @@ pub struct Parser {
     stats: ParserStats,
     /// What is checked beyond structure.
     checks: Checks,
+    /// The messages known.
+    dialect: Dialect,
 }
 
 impl Default for Parser {
@@ -179,7 +182,29 @@ impl Parser {
             position: 0,
             stats: ParserStats::default(),
             checks,
+            dialect: Dialect::builtin(),
         }
+    }
+
+    /// This parser, knowing the messages of `dialect` (the built-in table by default).
+    pub fn with_dialect(mut self, dialect: Dialect) -> Self {
+        self.dialect = dialect;
+        self
+    }
+
+    /// Knows the messages of `dialect` from the next candidate on.
+    pub fn set_dialect(&mut self, dialect: Dialect) {
+        self.dialect = dialect;
+    }
+
+    /// Makes `checks` from the next candidate on.
+    pub fn set_checks(&mut self, checks: Checks) {
+        self.checks = checks;
+    }
+
+    /// What this parser checks.
+    pub fn checks(&self) -> Checks {
+        self.checks
     }
 
     /// A parser that checks frame structure (magic, flags, known id, length limits) but
@@ -188,6 +213,7 @@ impl Parser {
         Parser::with_checks(Checks {
             crc: false,
             known_length: true,
+            accept_unknown: false,
         })
     }
 
@@ -261,7 +287,7 @@ impl Parser {
                 self.skip_pending(skip, events);
                 continue;
             }
-            match check_candidate(&self.pending, self.checks) {
+            match check_candidate(&self.pending, self.checks, &self.dialect) {
                 Candidate::NeedMore(total) => {
                     let take = (total - self.pending.len()).min(data.len());
                     self.pending.extend_from_slice(&data[..take]);
@@ -325,7 +351,7 @@ impl Parser {
                 continue;
             }
             let rest = &data[i..];
-            match check_candidate(rest, self.checks) {
+            match check_candidate(rest, self.checks, &self.dialect) {
                 Candidate::Frame(len, info) => {
                     let frame = Frame::new_unchecked(&rest[..len], info, base + i as u64);
                     self.stats.count_frame(&frame);

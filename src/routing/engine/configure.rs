@@ -56,6 +56,9 @@ pub struct Reconfigured {
     /// Frames that were queued for links of closed interfaces (dropped and counted here,
     /// not sent).
     pub dropped: u64,
+    /// The messages known (`dialect`) or the `unknown_messages` policy changed: every
+    /// parser uses the new ones from its next frame on.
+    pub dialect_changed: bool,
     /// The `record` block changed: the recording is to be restarted (or stopped).
     pub record_changed: bool,
     /// The `stats` block changed: the endpoint is to be restarted (or stopped).
@@ -85,6 +88,9 @@ impl fmt::Display for Reconfigured {
         if self.default_changed {
             write!(f, ", default_action changed")?;
         }
+        if self.dialect_changed {
+            write!(f, ", dialect changed")?;
+        }
         if self.dropped > 0 {
             write!(f, ", {} queued frames dropped", self.dropped)?;
         }
@@ -113,6 +119,7 @@ impl Engine {
         now: Timestamp,
     ) -> Reconfigured {
         let key_of = |i: usize| keys.get(i).and_then(Option::as_ref);
+        let parsing_changed = self.set_parsing(config);
         let rules = reload::plan_rules(&self.config, config);
         let plan = {
             let old: Vec<Keyed<'_>> = self
@@ -128,6 +135,7 @@ impl Engine {
             reload::plan_interfaces(&old, &new)
         };
         let mut done = Reconfigured {
+            dialect_changed: parsing_changed,
             rules: rules.total,
             rules_changed: rules.changed,
             default_changed: !rules.default_carried,
@@ -137,7 +145,8 @@ impl Engine {
                 != config.signing_state_path(|_| None),
             ..Reconfigured::default()
         };
-        if !rules.unchanged {
+        // A changed dialect may give a message name another id: the filter is rebuilt.
+        if !rules.unchanged || parsing_changed {
             let counts = carried_counts(&self.router.filter_counts(), &rules);
             self.router.replace_filter(config, &counts);
             self.rules = RuleBook::new(config);
@@ -218,6 +227,23 @@ impl Engine {
         self.config = config.clone();
         self.take_output();
         done
+    }
+
+    /// Takes `config`'s dialect and `unknown_messages` policy for every parser (those of
+    /// interfaces made from now on too: see `push_interface`). True if they changed.
+    fn set_parsing(&mut self, config: &Config) -> bool {
+        if self.config.dialect == config.dialect
+            && self.config.unknown_messages == config.unknown_messages
+        {
+            return false;
+        }
+        self.config.dialect = config.dialect;
+        self.config.unknown_messages = config.unknown_messages;
+        for (_, interface) in self.interfaces.iter_mut() {
+            interface.parser.set_dialect(config.dialect);
+            interface.parser.set_checks(config.checks());
+        }
+        true
     }
 
     /// Forgets interface `id`, which [`Request::Open`] named but the event loop could
