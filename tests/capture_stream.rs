@@ -361,7 +361,7 @@ type Sent = Vec<(Option<u64>, Vec<u8>)>;
 
 fn frames(input: impl Read) -> (Sent, String) {
     let mut got = Vec::new();
-    let r = replay::for_each_frame(input, |f| {
+    let r = replay::for_each_frame(input, mavtables::dialect::Dialect::builtin(), |f| {
         got.push((f.timestamp_us, f.bytes.to_vec()));
         Ok(())
     });

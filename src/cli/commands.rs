@@ -43,9 +43,12 @@ const INSPECT_OPTIONS: &[OptionSpec] = &[
 
 const REPLAY_USAGE: &str = "\
 usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|max]
+                        [--dialect FILE]...
   Sends a capture's valid frames at their recorded timing (divided by X; default 1),
   or as fast as possible with --speed max. Raw streams have no timing: they are sent
   as fast as the link takes them. FILE '-' is standard input, sent as it arrives.
+  --dialect FILE    also know the messages of this MAVLink XML file (repeatable);
+                    frames of messages no dialect knows are not sent
 ";
 
 /// The options of `replay`, as read by the shared reader.
@@ -53,6 +56,7 @@ const REPLAY_OPTIONS: &[OptionSpec] = &[
     OptionSpec::flag("help"),
     OptionSpec::value("to"),
     OptionSpec::value("speed"),
+    OptionSpec::value("dialect"),
 ];
 
 /// Runs `inspect`, `replay` or `stats` if `args` (without the program name) starts with one.
@@ -194,6 +198,7 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
     let mut file = None;
     let mut target = None;
     let mut speed = Speed::Factor(1.0);
+    let mut dialects = Loader::new();
     let mut reader = ArgReader::new(args.iter().cloned(), &[REPLAY_OPTIONS]);
     while let Some(arg) = reader.next_arg()? {
         match arg {
@@ -208,6 +213,12 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
                 name: "speed",
                 value,
             } => speed = Speed::parse(&value.unwrap_or_default())?,
+            Arg::Option {
+                name: "dialect",
+                value,
+            } => dialects
+                .add(Path::new(&value.unwrap_or_default()))
+                .map_err(|e| format!("cannot load the dialect: {e}"))?,
             Arg::Option { .. } => {}
             Arg::Positional(f) if file.is_none() => file = Some(f),
             Arg::Positional(extra) => return Err(format!("unexpected argument '{extra}'")),
@@ -222,6 +233,7 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
         ReplayError::Capture(e) => format!("{file}: {e}"),
         ReplayError::Send(e) => format!("{target}: {e}"),
     };
+    let dialect = dialects.finish();
     let (input, regular) = open_capture(&file)?;
     let terminal = std::io::stderr().is_terminal();
     let mut bar = ProgressBar::new(std::io::stderr());
@@ -229,19 +241,19 @@ fn run_replay(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Resu
         // A file is read twice: once to count its frames (the progress bar's total) and
         // to find a broken capture before anything is sent, then to send.
         let mut total = 0u64;
-        replay::for_each_frame(input, |_| {
+        replay::for_each_frame(input, dialect, |_| {
             total += 1;
             Ok(())
         })
         .map_err(describe)?;
         let (input, _) = open_capture(&file)?;
-        replay::replay(input, &target, speed, &mut |done| {
+        replay::replay(input, &target, speed, dialect, &mut |done| {
             if terminal {
                 bar.update(done, total);
             }
         })
     } else {
-        let sent = replay::replay(input, &target, speed, &mut |done| {
+        let sent = replay::replay(input, &target, speed, dialect, &mut |done| {
             if terminal {
                 bar.update_count(done);
             }

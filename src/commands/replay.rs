@@ -9,6 +9,7 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
 use crate::capture::{Capture, CaptureError, Format, Unit, Units};
+use crate::dialect::Dialect;
 use crate::wire::Parser;
 
 /// Where to send.
@@ -118,6 +119,8 @@ struct FrameUnits<F> {
     each: F,
     stream: Option<Parser>,
     error: Option<io::Error>,
+    /// The messages frames are checked against.
+    dialect: Dialect,
 }
 
 impl<F: FnMut(Timed<'_>) -> io::Result<()>> FrameUnits<F> {
@@ -147,24 +150,30 @@ impl<F: FnMut(Timed<'_>) -> io::Result<()>> Units for FrameUnits<F> {
                 self.frames(&mut parser, None, unit.bytes, false);
                 self.stream = Some(parser);
             }
-            None => self.frames(&mut Parser::new(), unit.timestamp_us, unit.bytes, true),
+            None => {
+                let mut parser = Parser::new().with_dialect(self.dialect);
+                self.frames(&mut parser, unit.timestamp_us, unit.bytes, true);
+            }
         }
         self.error.is_none()
     }
 }
 
 /// Calls `each` with every valid frame of the capture read from `input`, in order, as
-/// the capture is read (invalid bytes are left out). Stops at the first error `each`
-/// returns, which comes back as [`ReplayError::Send`].
+/// the capture is read (invalid bytes are left out; messages `dialect` does not know are
+/// invalid). Stops at the first error `each` returns, which comes back as
+/// [`ReplayError::Send`].
 pub fn for_each_frame(
     input: impl Read,
+    dialect: Dialect,
     each: impl FnMut(Timed<'_>) -> io::Result<()>,
 ) -> Result<(), ReplayError> {
     let capture = Capture::new(input).map_err(ReplayError::Input)?;
     let mut units = FrameUnits {
         each,
-        stream: (capture.format() == Format::Raw).then(Parser::new),
+        stream: (capture.format() == Format::Raw).then(|| Parser::new().with_dialect(dialect)),
         error: None,
+        dialect,
     };
     let end = capture.read(&mut units).map_err(ReplayError::Input)?;
     if let Some(mut parser) = units.stream.take() {
@@ -255,13 +264,14 @@ pub struct Summary {
     pub elapsed: Duration,
 }
 
-/// Sends the frames of the capture read from `input` to `target` at `speed`, as they
-/// are read, calling `progress(sent)` after each frame. Returns what was sent, and
+/// Sends the frames of the capture read from `input` that `dialect` knows to `target`
+/// at `speed`, as they are read, calling `progress(sent)` after each frame. Returns what was sent, and
 /// what stopped the replay short, if anything.
 pub fn replay(
     input: impl Read,
     target: &Target,
     speed: Speed,
+    dialect: Dialect,
     progress: &mut dyn FnMut(u64),
 ) -> (Summary, Option<ReplayError>) {
     let start = Instant::now();
@@ -270,7 +280,7 @@ pub fn replay(
         .map_err(ReplayError::Send)
         .and_then(|mut sender| {
             let mut first = None;
-            for_each_frame(input, |f| {
+            for_each_frame(input, dialect, |f| {
                 if let (Speed::Factor(k), Some(t)) = (speed, f.timestamp_us) {
                     let t0 = *first.get_or_insert(t);
                     let due =
