@@ -33,5 +33,6 @@ pub mod recording;
 pub mod routing;
 pub mod signing;
 pub mod stats;
+pub mod time;
 pub mod utc;
 pub mod wire;

@@ -4,7 +4,7 @@
 //! counted and not kept. Routing never depends on it.
 
 use super::filter::RecordFilter;
-use crate::routing::Timestamp;
+use crate::time::Timestamp;
 use crate::wire::Frame;
 
 /// What the tap holds at most between two takes: far more than one loop turn receives.

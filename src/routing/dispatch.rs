@@ -2,9 +2,9 @@
 //! packet is filtered for on one link, and what comes of it.
 
 use super::pool::AddressPool;
-use super::time::Timestamp;
 use crate::address::Address;
 use crate::filter::{Filter, Verdict};
+use crate::time::Timestamp;
 
 /// The outcome of offering a packet to one link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

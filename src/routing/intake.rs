@@ -10,10 +10,10 @@ use super::engine::Notice;
 use super::link::LinkId;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
-use super::time::Timestamp;
 use crate::recording::Tap;
 use crate::signing::clock::UNITS_PER_SEC;
 use crate::signing::{Admission, Edge, Refusal, Signing};
+use crate::time::Timestamp;
 use crate::wire::{Frame, ParseEvents, Rejection};
 
 /// How many distinct unknown ids are reported; beyond that they are only counted, so a

@@ -11,9 +11,9 @@ use super::pacer::{DEFAULT_BURST, Pacer};
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF, MAX_RECONNECT_WAIT};
 use super::remotes::Remotes;
 use super::stale::StaleTail;
-use super::time::Timestamp;
 use crate::config::PeerLimits;
 use crate::signing::Edge;
+use crate::time::Timestamp;
 use crate::wire::{Parser, ParserStats};
 
 /// Identifies an interface of an [`Engine`](super::Engine) for as long as it exists (the

@@ -7,7 +7,7 @@ use std::time::Duration;
 use super::counters::{LinkCounters, LinkReport};
 use super::pool::AddressPool;
 use super::queue::PacketQueue;
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// Identifies a link for as long as it exists; never reused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -39,8 +39,8 @@ pub mod router;
 pub mod snapshot;
 pub mod sources;
 pub mod stale;
-pub mod time;
 
+pub use crate::time::Timestamp;
 pub use counters::{InterfaceReport, LinkCounters, LinkReport};
 pub use dispatch::Decision;
 pub use engine::{Engine, Notice, Reconfigured, Request, Transmit};
@@ -51,4 +51,6 @@ pub use pacer::{Pace, Pacer};
 pub use pool::AddressPool;
 pub use queue::{Packet, PacketQueue, PushOutcome};
 pub use router::{Output, Router, RouterOptions};
-pub use time::Timestamp;
+
+// `super::time::Timestamp` in the submodules names the crate's time type.
+use crate::time;

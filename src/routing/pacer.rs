@@ -19,7 +19,7 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// Bucket depth by default: the largest MAVLink frame (a signed v2 frame with a 255-byte
 /// payload), since the router sends one frame per datagram.

@@ -2,8 +2,8 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
 use crate::address::Address;
+use crate::time::Timestamp;
 
 /// How long a learned address stays without being heard from (the original's 120 s).
 pub const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);

@@ -1,10 +1,8 @@
 //! A link's outgoing packets: bounded, highest priority first, FIFO among equals.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::sync::Arc;
 
-/// The exact bytes of one received frame, shared by every link that forwards it.
-pub type Packet = Arc<[u8]>;
+pub use crate::wire::Packet;
 
 /// Bytes one link's queue holds by default: 4 MiB.
 ///

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// First wait before trying again to open a missing device.
 pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);

@@ -12,10 +12,10 @@ use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
 use super::queue::{DEFAULT_CAPACITY, DEFAULT_TOTAL_CAPACITY, Packet, PacketQueue, PushOutcome};
 use super::sources::{Sequences, SourceTable};
-use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
 use crate::filter::{CacheStats, Filter, FilterCounts, cache};
+use crate::time::Timestamp;
 use crate::wire::Frame;
 
 /// Tunables of a [`Router`]; `Default` gives the original's behaviour.

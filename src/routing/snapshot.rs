@@ -8,7 +8,6 @@ use slab::Slab;
 use super::interface::{Interface, Kind};
 use super::link::LinkId;
 use super::router::Router;
-use super::time::Timestamp;
 use crate::config::{Config, DefaultAction};
 use crate::dialect;
 use crate::stats::rule_text::rule_text;
@@ -16,6 +15,7 @@ use crate::stats::{
     ChainStats, DefaultActionStats, Drops, History, InterfaceStats, LinkStats, RuleStats,
     SequenceStats, SigningStats, SourceStats, StatsSnapshot,
 };
+use crate::time::Timestamp;
 
 /// What the statistics need of the configuration, kept from the start: chain names and
 /// rule texts (in the filter's flat rule order), and the default action.

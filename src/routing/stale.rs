@@ -15,7 +15,7 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
+use crate::time::Timestamp;
 use crate::wire::frame::MAX_FRAME_LEN;
 
 /// Quiet time beyond a largest frame's transmission time after which held-back bytes

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use crate::routing::Timestamp;
+use crate::time::Timestamp;
 
 /// 2015-01-01 00:00:00 UTC in seconds since the Unix epoch.
 pub const EPOCH_2015_UNIX_SECS: u64 = 1_420_070_400;

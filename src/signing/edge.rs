@@ -9,8 +9,8 @@ use super::sign::{sign, wants_signature};
 use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
 use super::streams::{StreamId, StreamTable};
 use super::verify::{Admission, Check, Refusal};
-use crate::routing::{Packet, Timestamp};
-use crate::wire::Frame;
+use crate::time::Timestamp;
+use crate::wire::{Frame, Packet};
 
 /// The signing settings of one interface with a key, and what it counted.
 #[derive(Debug, Clone)]

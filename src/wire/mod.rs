@@ -15,3 +15,7 @@ pub use frame::{ExactError, Frame, Signature};
 pub use header::{HeaderError, HeaderRepr, Layout, Version};
 pub use parser::{ParseEvents, Parser, ParserStats};
 pub use summary::PacketSummary;
+
+/// The exact bytes of one whole frame (as received, or as signed on its way out),
+/// shared by every link that forwards it: queued and sent, never re-encoded.
+pub type Packet = std::sync::Arc<[u8]>;

@@ -1,4 +1,5 @@
-//! Time as a value: the routing core never reads a clock, the caller passes "now" in.
+//! Time as a value: the sans-IO layers (routing, signing, recording) never read a clock;
+//! the caller passes "now" in as a [`Timestamp`], a monotonic instant.
 
 use std::ops::Add;
 use std::time::Duration;
