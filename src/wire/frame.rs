@@ -8,7 +8,6 @@ use crate::dialect::MessageInfo;
 
 use super::check::{Candidate, Checks, check_candidate};
 use super::header::{HeaderRepr, Layout};
-use super::summary::PacketSummary;
 // Names that lived here before `header` and `check` existed stay reachable by this path.
 pub use super::check::Rejection;
 pub use super::header::{
@@ -255,13 +254,6 @@ impl fmt::Debug for Frame<'_> {
             .field("len", &self.payload_len())
             .field("signed", &self.is_signed())
             .finish()
-    }
-}
-
-/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
-impl fmt::Display for Frame<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        fmt::Display::fmt(&PacketSummary::of(self), f)
     }
 }
 

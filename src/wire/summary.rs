@@ -52,6 +52,13 @@ impl fmt::Display for PacketSummary {
     }
 }
 
+/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
+impl fmt::Display for Frame<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(&PacketSummary::of(self), f)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
