@@ -24,6 +24,7 @@ pub mod semantics;
 pub mod sockets;
 pub mod stats;
 pub mod suggest;
+mod values;
 
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};

@@ -6,7 +6,7 @@ use super::Span;
 use super::ast::{Ast, RecordSetting};
 use super::diagnostic::Diagnostic;
 use super::model::{Condition, Recording};
-use super::semantics::ranged;
+use super::values::ranged;
 use crate::recording::pattern::{MAX_SUFFIX, NAME_MAX};
 use crate::recording::{FilePattern, Manifest};
 

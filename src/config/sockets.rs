@@ -7,7 +7,7 @@ use super::ast::{Ast, IpAst, SocketSetting};
 use super::diagnostic::Diagnostic;
 use super::model::*;
 use super::net::{self, TextError};
-use super::semantics::ranged;
+use super::values::{interface_signing, ranged};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
 
 /// Which block is being checked.
@@ -96,7 +96,7 @@ pub fn check(
             SocketSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
         }
     }
-    let signing = match super::semantics::interface_signing(ast, key_file, &allow_unsigned) {
+    let signing = match interface_signing(ast, key_file, &allow_unsigned) {
         Ok(signing) => signing,
         Err(d) => {
             cx.error(d);
