@@ -24,6 +24,7 @@ pub mod address;
 pub mod capture;
 pub mod cli;
 pub mod commands;
+pub mod condition;
 pub mod config;
 pub mod dialect;
 pub mod files;
