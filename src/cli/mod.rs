@@ -9,7 +9,7 @@ mod commands;
 pub mod endpoints;
 mod run;
 mod search;
-mod stats;
+mod stats_args;
 mod text;
 
 pub use args::{Options, parse};

@@ -22,7 +22,7 @@ pub mod record_path;
 pub mod recording;
 pub mod semantics;
 pub mod sockets;
-pub mod stats;
+pub mod stats_block;
 pub mod suggest;
 mod values;
 

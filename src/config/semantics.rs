@@ -103,7 +103,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
                 }
             }
             Item::Stats { keyword, settings } => {
-                let endpoint = super::stats::check(ast, *keyword, settings, &mut cx.errors);
+                let endpoint = super::stats_block::check(ast, *keyword, settings, &mut cx.errors);
                 match stats_line {
                     Some(first) => cx.error(
                         Diagnostic::new(*keyword, "only one 'stats' block is allowed")

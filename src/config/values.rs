@@ -1,5 +1,5 @@
 //! Checks shared by the statement checkers ([`semantics`](super::semantics) and the
-//! blocks it hands over: [`sockets`](super::sockets), [`stats`](super::stats),
+//! blocks it hands over: [`sockets`](super::sockets), [`stats_block`](super::stats_block),
 //! [`recording`](super::recording)): a number within its range and an interface's
 //! signing settings. A leaf: it imports none of them.
 

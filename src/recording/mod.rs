@@ -2,7 +2,7 @@
 //! bounded tap of them ([`tap`]), file names from the `record { path …; }` pattern
 //! ([`pattern`]), the list of the recordings the router created, the only files it may
 //! remove ([`manifest`]), which of them go when files are rotated or the disk fills
-//! ([`rotation`]) and the counters ([`stats`]). The writer thread that puts records on
+//! ([`rotation`]) and the counters ([`counters`]). The writer thread that puts records on
 //! the disk is `src/io/recorder.rs`.
 //!
 //! A recording is a `.tlog`: each record is the time of arrival (8 bytes, big-endian
@@ -12,11 +12,11 @@ pub mod filter;
 pub mod manifest;
 pub mod pattern;
 pub mod rotation;
-pub mod stats;
+pub mod counters;
 pub mod tap;
 
 pub use filter::RecordFilter;
 pub use manifest::Manifest;
 pub use pattern::{FilePattern, LocalTime, PatternError};
-pub use stats::RecorderStats;
+pub use counters::RecorderStats;
 pub use tap::Tap;
