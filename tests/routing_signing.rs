@@ -13,7 +13,7 @@ use mavtables::routing::{Engine, InterfaceId, Notice, RouterOptions, Timestamp, 
 use mavtables::signing::SigningKey;
 use mavtables::signing::clock::UNITS_PER_SEC;
 use mavtables::wire::Frame;
-use mavtables::wire::encode::{Header, Signing, encode_v2};
+use mavtables::wire::encode::{Header, SignWith, encode_v2};
 use mavtables::wire::signing::verify;
 use routing::{frame, frame_v1};
 
@@ -36,7 +36,7 @@ fn signed_with(key: &[u8; 32], name: &str, from: &str, timestamp: u64) -> Vec<u8
         component: f.source().component,
     };
     let mut out = Vec::new();
-    let signing = Signing {
+    let signing = SignWith {
         key,
         link_id: 1,
         timestamp,

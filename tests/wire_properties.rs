@@ -3,7 +3,7 @@
 //! message's known length (forwarded when the checksum holds).
 
 use mavtables::dialect;
-use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2, encode_v2_exact};
+use mavtables::wire::encode::{Header, SignWith, encode_v1, encode_v2, encode_v2_exact};
 use mavtables::wire::{Checks, Frame, Parser, Rejection, Version};
 use proptest::prelude::*;
 
@@ -56,7 +56,7 @@ fn encode(m: &Msg, out: &mut Vec<u8>) {
     if m.v1 {
         encode_v1(m.header, id, &m.payload, out).expect("encode v1");
     } else {
-        let signing = m.sign.map(|(link_id, timestamp)| Signing {
+        let signing = m.sign.map(|(link_id, timestamp)| SignWith {
             key: &KEY,
             link_id,
             timestamp,

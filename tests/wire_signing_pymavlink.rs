@@ -6,7 +6,7 @@ mod common;
 
 use common::{hex, run_py, unhex};
 use mavtables::wire::Frame;
-use mavtables::wire::encode::{Header, Signing, encode_v2};
+use mavtables::wire::encode::{Header, SignWith, encode_v2};
 use mavtables::wire::signing::{SecretKey, verify};
 
 fn key() -> SecretKey {
@@ -85,7 +85,7 @@ fn our_encoder_reproduces_pymavlink_signed_frames() {
             component: frame.component(),
         };
         let k = key();
-        let signing = Signing {
+        let signing = SignWith {
             key: &k,
             link_id: sig.link_id(),
             timestamp: sig.timestamp(),
@@ -119,7 +119,7 @@ fn pymavlink_verifies_frames_we_sign() {
             system: 9,
             component: 1,
         };
-        let signing = Signing {
+        let signing = SignWith {
             key: &k,
             link_id: 3,
             timestamp: 0x2000_0000_0000 + n as u64,
@@ -130,7 +130,7 @@ fn pymavlink_verifies_frames_we_sign() {
     }
     // And one with a corrupted signature value, which pymavlink must refuse.
     let mut bad = Vec::new();
-    let signing = Signing {
+    let signing = SignWith {
         key: &k,
         link_id: 3,
         timestamp: 0x2000_0000_0100,

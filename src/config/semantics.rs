@@ -186,7 +186,7 @@ pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
 }
 
 /// A `call`/`goto` reference from one chain to another.
-struct Edge {
+struct ChainRef {
     from: ChainId,
     to: ChainId,
     at: Span,
@@ -198,7 +198,7 @@ struct Checker<'a, 'b> {
     errors: Vec<Diagnostic>,
     ids: HashMap<&'a str, ChainId>,
     names: Vec<(&'a str, Span)>,
-    edges: Vec<Edge>,
+    edges: Vec<ChainRef>,
     lines: LineIndex,
 }
 
@@ -489,7 +489,7 @@ impl<'a> Checker<'a, '_> {
         }
         match self.ids.get(name) {
             Some(id) => {
-                self.edges.push(Edge {
+                self.edges.push(ChainRef {
                     from,
                     to: *id,
                     at: target,

@@ -8,15 +8,15 @@
 //! A recording is a `.tlog`: each record is the time of arrival (8 bytes, big-endian
 //! microseconds since the UNIX epoch) followed by the frame exactly as received.
 
+pub mod counters;
 pub mod filter;
 pub mod manifest;
 pub mod pattern;
 pub mod rotation;
-pub mod counters;
 pub mod tap;
 
+pub use counters::RecorderStats;
 pub use filter::RecordFilter;
 pub use manifest::Manifest;
 pub use pattern::{FilePattern, LocalTime, PatternError};
-pub use counters::RecorderStats;
 pub use tap::Tap;

@@ -149,9 +149,10 @@ pub struct Reopen {
     pub down_since: Option<Timestamp>,
 }
 
-/// The core's state of one interface.
+/// The core's state of one interface as it runs (what the file says about it is
+/// [`crate::config::Interface`]).
 #[derive(Debug)]
-pub struct Interface {
+pub struct LiveInterface {
     /// How the counters report names it (`udp 0.0.0.0:14500`, or the device path).
     pub label: String,
     /// How messages name it (`udp 0.0.0.0:14500`, `serial device /dev/ttyUSB0`).
@@ -177,10 +178,10 @@ pub struct Interface {
     pub signing: Option<Edge>,
 }
 
-impl Interface {
+impl LiveInterface {
     /// A new interface of `kind`.
     pub fn new(label: String, described: String, tail: StaleTail, rate: u64, kind: Kind) -> Self {
-        Interface {
+        LiveInterface {
             label,
             described,
             parser: Parser::new(),
@@ -198,14 +199,14 @@ impl Interface {
     /// A datagram network interface (no line rate: held-back bytes wait the plain quiet
     /// gap) named `label` in messages and counters alike.
     pub fn network(label: String, rate: u64, kind: Kind) -> Self {
-        Interface::new(label.clone(), label, StaleTail::new(None), rate, kind)
+        LiveInterface::new(label.clone(), label, StaleTail::new(None), rate, kind)
     }
 
     /// A TCP interface (a client, a server or one of its connections) named `label`:
     /// its held-back bytes wait for the rest of their frame as long as the connection
     /// lasts.
     pub fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
-        Interface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
+        LiveInterface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
     }
 
     /// The connection state of an interface that opens (streams, datagram clients).

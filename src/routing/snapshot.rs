@@ -5,7 +5,7 @@ use std::collections::HashMap;
 
 use slab::Slab;
 
-use super::interface::{Interface, Kind};
+use super::interface::{Kind, LiveInterface};
 use super::link::LinkId;
 use super::router::Router;
 use crate::config::{Config, DefaultAction};
@@ -50,7 +50,7 @@ pub struct Sources<'a> {
     /// The router.
     pub router: &'a mut Router,
     /// The interfaces.
-    pub interfaces: &'a Slab<Interface>,
+    pub interfaces: &'a Slab<LiveInterface>,
     /// Chain names and rule texts.
     pub rules: &'a RuleBook,
     /// The rate history (updated).

@@ -10,6 +10,7 @@ use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
 use super::streams::{StreamId, StreamTable};
 use super::verify::{Admission, Check, Refusal};
 use crate::time::Timestamp;
+use crate::wire::signing::SigningTime;
 use crate::wire::{Frame, Packet};
 
 /// The signing settings of one interface with a key, and what it counted.
@@ -74,12 +75,12 @@ impl Signing {
     }
 
     /// Notes the wall clock: at `now` it read `units` of signature time.
-    pub fn set_wall_clock(&mut self, now: Timestamp, units: u64) {
+    pub fn set_wall_clock(&mut self, now: Timestamp, units: SigningTime) {
         self.clock.set_wall(now, units);
     }
 
     /// The signing clock at `now` (10 µs units since 2015).
-    pub fn clock(&self, now: Timestamp) -> u64 {
+    pub fn clock(&self, now: Timestamp) -> SigningTime {
         self.clock.now(now)
     }
 

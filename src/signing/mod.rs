@@ -14,6 +14,7 @@ pub mod state;
 pub mod streams;
 pub mod verify;
 
+pub use crate::wire::signing::SigningTime;
 pub use counters::SigningCounters;
 pub use edge::{Edge, Signing};
 pub use key::{KeyError, SigningKey};

@@ -8,13 +8,14 @@ use super::key::SigningKey;
 use crate::dialect;
 use crate::wire::Packet;
 use crate::wire::header::V2;
+use crate::wire::signing::SigningTime;
 pub use crate::wire::signing::{signed_len, wants_signature};
 
 /// `frame` signed with `key`, `link_id` and `timestamp`, or `None` if it is not to be
 /// signed (see [`wants_signature`]) or its message id is not in the dialect (its
 /// checksum cannot be made again). The bytes are edited by
 /// [`crate::wire::signing::add_signature`].
-pub fn sign(frame: &[u8], key: &SigningKey, link_id: u8, timestamp: u64) -> Option<Packet> {
+pub fn sign(frame: &[u8], key: &SigningKey, link_id: u8, timestamp: SigningTime) -> Option<Packet> {
     if !wants_signature(frame) {
         return None;
     }
@@ -27,7 +28,7 @@ pub fn sign(frame: &[u8], key: &SigningKey, link_id: u8, timestamp: u64) -> Opti
 mod tests {
     use super::*;
     use crate::wire::Frame;
-    use crate::wire::encode::{Header, Signing, encode_v1, encode_v2};
+    use crate::wire::encode::{Header, SignWith, encode_v1, encode_v2};
     use crate::wire::header::MAGIC_V2;
     use crate::wire::signing::verify;
 
@@ -48,7 +49,7 @@ mod tests {
         let mut plain = Vec::new();
         encode_v2(header(), 0, &payload, None, &mut plain).expect("heartbeat");
         let mut expected = Vec::new();
-        let signing = Signing {
+        let signing = SignWith {
             key: &KEY,
             link_id: 3,
             timestamp: 123_456_789,
@@ -86,7 +87,7 @@ mod tests {
         assert!(sign(&v1, &key, 0, 1).is_none());
         assert_eq!(signed_len(&v1), v1.len());
         let mut signed = Vec::new();
-        let signing = Signing {
+        let signing = SignWith {
             key: &KEY,
             link_id: 0,
             timestamp: 1,

@@ -20,6 +20,11 @@ const INCOMPAT_AT: usize = match V2.incompat_flags {
     None => panic!("a MAVLink 2 header has incompatibility flags"),
 };
 
+/// A signature's time: units of 10 µs since 2015-01-01 00:00 UTC, 48 bits on the wire.
+/// Not a [`crate::time::Timestamp`] (the router's monotonic "now"): a signing term, on
+/// the wall clock's scale, that only ever goes up per stream.
+pub type SigningTime = u64;
+
 /// A 32-byte MAVLink 2 signing key.
 pub type SecretKey = [u8; 32];
 
@@ -80,7 +85,12 @@ pub fn signed_len(frame: &[u8]) -> usize {
 /// appended; `None` if it does not want a signature (see [`wants_signature`]) or would
 /// be too long. The checksum is not checked: a frame with a wrong one stays wrong. Built
 /// on the stack and copied once into the packet.
-pub fn add_signature(frame: &[u8], key: &SecretKey, link_id: u8, timestamp: u64) -> Option<Packet> {
+pub fn add_signature(
+    frame: &[u8],
+    key: &SecretKey,
+    link_id: u8,
+    timestamp: SigningTime,
+) -> Option<Packet> {
     if !wants_signature(frame) || frame.len() + SIGNATURE_LEN > MAX_FRAME_LEN {
         return None;
     }

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2};
+use mavtables::wire::encode::{Header, SignWith, encode_v1, encode_v2};
 use sha2::{Digest, Sha256};
 
 use crate::common::mavproxy::mavproxy_command;
@@ -86,7 +86,7 @@ pub fn signed(
         },
         id,
         payload,
-        Some(Signing {
+        Some(SignWith {
             key,
             link_id,
             timestamp,
