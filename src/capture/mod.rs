@@ -9,7 +9,7 @@
 //! [`pcap::Reader`] and [`pcapng::Reader`] walk a capture already in memory with the
 //! same answers.
 
-pub mod linktype;
+pub(crate) mod linktype;
 pub mod pcap;
 pub mod pcapng;
 pub mod records;

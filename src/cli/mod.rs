@@ -3,9 +3,10 @@
 //! building one from [`endpoints`], `--ast`, `--check`, and dispatching to the `inspect`
 //! and `replay` subcommands and to `stats`.
 
-pub mod arg_reader;
+pub(crate) mod arg_reader;
 mod args;
 mod commands;
+#[doc(hidden)]
 pub mod endpoints;
 mod run;
 mod search;

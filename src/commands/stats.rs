@@ -2,9 +2,9 @@
 //! its chains, rules and links like `iptables -L -v`; `--watch` redraws it every second.
 //! Its command line is read in [`crate::cli`].
 
-pub mod http;
-pub mod render;
-pub mod table;
+pub(crate) mod http;
+pub(crate) mod render;
+pub(crate) mod table;
 
 use std::io::Write;
 use std::net::IpAddr;

@@ -7,30 +7,34 @@
 //! [`check_record_path`] looks at the file a `record` path without `%` fields names.
 //! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
-pub mod ast;
-pub mod claims;
-pub mod diagnostic;
-pub mod file;
-pub mod keys;
-pub mod lexer;
-pub mod lines;
-pub mod model;
-pub mod net;
-pub mod parser;
-pub mod printer;
-pub mod record_path;
-pub mod recording;
-pub mod semantics;
-pub mod sockets;
-pub mod stats_block;
-pub mod suggest;
+pub(crate) mod ast;
+pub(crate) mod claims;
+pub(crate) mod diagnostic;
+pub(crate) mod file;
+pub(crate) mod keys;
+pub(crate) mod lexer;
+pub(crate) mod lines;
+pub(crate) mod model;
+pub(crate) mod net;
+pub(crate) mod parser;
+pub(crate) mod printer;
+pub(crate) mod record_path;
+pub(crate) mod recording;
+pub(crate) mod semantics;
+pub(crate) mod sockets;
+pub(crate) mod stats_block;
+pub(crate) mod suggest;
 mod values;
 
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};
 pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
-pub use model::*;
+pub use model::{
+    Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
+    DefaultAction, Host, Interface, InterfaceSigning, IpRange, PeerLimits, QueueBounds, Recording,
+    Remote, Rule, SIGNING_STATE_FILE, SerialInterface, StatsEndpoint, TcpInterface, UdpInterface,
+};
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
 pub use record_path::check_record_path;

@@ -22,9 +22,10 @@
 //! assert_eq!(filter.check(0, src, dest, false), Verdict::Reject); // HEARTBEAT: default_action
 //! ```
 
+#[doc(hidden)]
 pub mod cache;
-pub mod eval;
-pub mod trace;
+pub(crate) mod eval;
+pub(crate) mod trace;
 
 use crate::address::Address;
 use crate::config::Config;

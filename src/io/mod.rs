@@ -16,13 +16,14 @@
 
 mod driver;
 mod log;
-pub mod manifest;
+pub(crate) mod manifest;
 mod notify;
 mod recorder;
 mod resolve;
 mod runtime;
 mod serial;
 mod state_file;
+#[doc(hidden)]
 pub mod stats_server;
 mod stream;
 #[allow(unsafe_code)]

@@ -8,12 +8,12 @@
 //! A recording is a `.tlog`: each record is the time of arrival (8 bytes, big-endian
 //! microseconds since the UNIX epoch) followed by the frame exactly as received.
 
-pub mod counters;
-pub mod filter;
-pub mod manifest;
-pub mod pattern;
-pub mod rotation;
-pub mod tap;
+pub(crate) mod counters;
+pub(crate) mod filter;
+pub(crate) mod manifest;
+pub(crate) mod pattern;
+pub(crate) mod rotation;
+pub(crate) mod tap;
 
 pub use counters::RecorderStats;
 pub use filter::RecordFilter;

@@ -21,24 +21,24 @@
 //!
 //! Tests drive the same calls with a simulated clock (`tests/routing/`).
 
-pub mod admission;
-pub mod counters;
-pub mod dispatch;
-pub mod engine;
-pub mod event;
-pub mod intake;
-pub mod interface;
-pub mod link;
-pub mod pacer;
-pub mod pool;
-pub mod queue;
-pub mod reconnect;
-pub mod reload;
-pub mod remotes;
-pub mod router;
-pub mod snapshot;
-pub mod sources;
-pub mod stale;
+pub(crate) mod admission;
+pub(crate) mod counters;
+pub(crate) mod dispatch;
+pub(crate) mod engine;
+pub(crate) mod event;
+pub(crate) mod intake;
+pub(crate) mod interface;
+pub(crate) mod link;
+pub(crate) mod pacer;
+pub(crate) mod pool;
+pub(crate) mod queue;
+pub(crate) mod reconnect;
+pub(crate) mod reload;
+pub(crate) mod remotes;
+pub(crate) mod router;
+pub(crate) mod snapshot;
+pub(crate) mod sources;
+pub(crate) mod stale;
 
 pub use crate::time::Timestamp;
 pub use counters::{InterfaceReport, LinkCounters, LinkReport};

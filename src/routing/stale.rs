@@ -16,7 +16,7 @@
 use std::time::Duration;
 
 use crate::time::Timestamp;
-use crate::wire::frame::MAX_FRAME_LEN;
+use crate::wire::header::MAX_FRAME_LEN;
 
 /// Quiet time beyond a largest frame's transmission time after which held-back bytes
 /// are judged.

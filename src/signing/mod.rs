@@ -7,13 +7,18 @@
 //! as arguments, state goes out as text for the I/O layer to write. The bytes of a
 //! signature are computed and written by [`crate::wire::signing`].
 
+#[doc(hidden)]
 pub mod clock;
-pub mod counters;
-pub mod edge;
-pub mod key;
+pub(crate) mod counters;
+pub(crate) mod edge;
+pub(crate) mod key;
+#[doc(hidden)]
 pub mod sign;
+#[doc(hidden)]
 pub mod state;
+#[doc(hidden)]
 pub mod streams;
+#[doc(hidden)]
 pub mod verify;
 
 pub use crate::wire::signing::SigningTime;

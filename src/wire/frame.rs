@@ -6,13 +6,9 @@ use std::fmt;
 use crate::address::Address;
 use crate::dialect::MessageInfo;
 
-use super::check::{Candidate, Checks, check_candidate};
-use super::header::{HeaderRepr, Layout};
-// Names that lived here before `header` and `check` existed stay reachable by this path.
-pub use super::check::Rejection;
-pub use super::header::{
-    CHECKSUM_LEN, HEADER_LEN_V1, HEADER_LEN_V2, INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN,
-    SIGNATURE_LEN, Version,
+use super::check::{Candidate, Checks, Rejection, check_candidate};
+use super::header::{
+    HEADER_LEN_V1, HeaderRepr, INCOMPAT_SIGNED, Layout, MAGIC_V2, SIGNATURE_LEN, Version,
 };
 
 /// Why [`Frame::parse_exact`] refused a byte string.
@@ -287,6 +283,7 @@ mod tests {
     use super::*;
     use crate::wire::crc::frame_checksum;
     use crate::wire::encode::{Header, encode_v1, encode_v2};
+    use crate::wire::header::MAGIC_V1;
 
     fn v2(id: u32, payload: &[u8]) -> Vec<u8> {
         let mut out = Vec::new();

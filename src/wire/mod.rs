@@ -4,11 +4,11 @@
 pub mod check;
 pub mod crc;
 pub mod encode;
-pub mod frame;
-pub mod header;
-pub mod parser;
+pub(crate) mod frame;
+pub(crate) mod header;
+pub(crate) mod parser;
 pub mod signing;
-pub mod summary;
+pub(crate) mod summary;
 
 pub use check::{Checks, Rejection};
 pub use frame::{ExactError, Frame, Signature};
