@@ -5,15 +5,15 @@
 //! - [`time`]: the monotonic [`Timestamp`](time::Timestamp) every sans-IO layer is
 //!   handed as "now" (none of them reads a clock);
 //! - [`address`]: MAVLink addresses and subnets;
-//! - [`files`]: bounded reads of the files the router is given (configuration, keys,
+//! - `files`: bounded reads of the files the router is given (configuration, keys,
 //!   signing state);
-//! - [`utc`]: UTC calendar formatting of timestamps (logs and `inspect`);
+//! - `utc`: UTC calendar formatting of timestamps (logs and `inspect`);
 //! - [`dialect`]: generated message tables (ids, names, CRC_EXTRA, lengths, fields);
 //! - [`wire`]: MAVLink v1/v2 framing, CRC, the streaming parser, encoding, the shared
 //!   bytes of a frame ([`Packet`](wire::Packet)) and the signature's cryptography and
 //!   byte edits (pure);
 //! - [`capture`]: reading raw, `.tlog`, `.pcap` and `.pcapng` captures (pure);
-//! - [`condition`]: the `if …` condition of filter rules and of the recording filter;
+//! - `condition`: the `if …` condition of filter rules and of the recording filter;
 //! - [`signing`]: MAVLink 2 signing at the router's edge: keys (read from their files),
 //!   the check of signed frames and replay protection, the signatures the router adds,
 //!   its signing clock and the saved stream table (sans-IO apart from reading keys);

@@ -1,5 +1,5 @@
 //! Classic libpcap files (`.pcap`): the UDP payloads they carry (link types as in
-//! [`super::linktype`]). Non-UDP packets are passed over and counted.
+//! `super::linktype`). Non-UDP packets are passed over and counted.
 
 use super::records::{self, RecordFormat};
 use super::{Unit, linktype};

@@ -1,5 +1,5 @@
 //! pcapng files (Wireshark's default format): the UDP payloads of their Enhanced and
-//! Simple Packet Blocks (link types as in [`super::linktype`]). Other blocks, other
+//! Simple Packet Blocks (link types as in `super::linktype`). Other blocks, other
 //! protocols and interfaces of unknown link types are passed over and counted.
 
 use super::pcap::{Datagram, PcapError};

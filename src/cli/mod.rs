@@ -1,4 +1,4 @@
-//! Command-line interface of the `mavtables` binary: options (one reader, [`arg_reader`],
+//! Command-line interface of the `mavtables` binary: options (one reader, `arg_reader`,
 //! for the main command and its subcommands), finding and loading the configuration or
 //! building one from [`endpoints`], `--ast`, `--check`, and dispatching to the `inspect`
 //! and `replay` subcommands and to `stats`.

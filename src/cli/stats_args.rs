@@ -32,7 +32,11 @@ const OPTIONS: &[OptionSpec] = &[
 ];
 
 /// Runs `mavtables stats ARGS`; the exit status, or the error line to print.
-pub fn run_stats(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Result<u8, String> {
+pub(super) fn run_stats(
+    args: &[String],
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<u8, String> {
     let mut config = None;
     let mut url = None;
     let mut watch = false;

@@ -33,8 +33,8 @@ impl Diagnostic {
     }
 
     /// Renders the diagnostic against the source it was found in. A line longer than
-    /// [`SHOWN_CHARS`] is shown as a window around the position (`…` where it was cut),
-    /// and a message or note longer than [`TEXT_CHARS`] is cut too, so a pathological
+    /// `SHOWN_CHARS` is shown as a window around the position (`…` where it was cut),
+    /// and a message or note longer than `TEXT_CHARS` is cut too, so a pathological
     /// file gets a short error.
     pub fn render(&self, file: &str, src: &str) -> String {
         let pos = Position::of(src, self.span.start);
@@ -75,10 +75,10 @@ impl Diagnostic {
 }
 
 /// Longest source line shown whole, in characters.
-pub const SHOWN_CHARS: usize = 160;
+pub(crate) const SHOWN_CHARS: usize = 160;
 
 /// Longest message or note shown whole, in characters: room for a few long paths.
-pub const TEXT_CHARS: usize = 1024;
+pub(crate) const TEXT_CHARS: usize = 1024;
 
 /// Characters of a long line shown before the position.
 const SHOWN_BEFORE: usize = 60;

@@ -1,7 +1,7 @@
 //! The configuration language: lexer, parser, `--ast` printer, located diagnostics and
 //! the semantic model the router runs from.
 //!
-//! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
+//! [`parse`] checks syntax only and gives the `ast::Ast` (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
 //! signing keys it names, [`check_signing_state`] checks its signing state file, and
 //! [`check_record_path`] looks at the file a `record` path without `%` fields names.
@@ -50,7 +50,7 @@ pub const CONFIG_FILE_LIMIT: u64 = 16 << 20;
 
 /// The text of the configuration file at `path`, which must be a regular file (after
 /// following symlinks) of at most [`CONFIG_FILE_LIMIT`] bytes; see
-/// [`crate::files::read_regular`]. Bytes that are not UTF-8 become U+FFFD, which the
+/// `crate::files::read_regular`. Bytes that are not UTF-8 become U+FFFD, which the
 /// lexer reports where they are.
 pub fn read_source(path: &Path) -> Result<String, FileError> {
     let bytes = read_regular(path, CONFIG_FILE_LIMIT)?;

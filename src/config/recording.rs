@@ -13,7 +13,7 @@ use crate::recording::{FilePattern, Manifest};
 /// The recording a `record` block describes, given its `only` conditions already
 /// checked (`None` where one was wrong); every mistake is added to `errors`. A
 /// statement written twice counts the second time.
-pub fn check(
+pub(crate) fn check(
     ast: &Ast<'_>,
     settings: &[RecordSetting],
     only: Vec<Option<Condition>>,

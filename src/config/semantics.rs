@@ -27,7 +27,7 @@ pub struct Loaded {
 }
 
 /// Checks `ast` and builds the configuration, or returns every error found.
-pub fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
+pub(crate) fn analyse(ast: &Ast<'_>) -> Result<Loaded, Vec<Diagnostic>> {
     let mut cx = Checker {
         ast,
         errors: Vec::new(),

@@ -12,7 +12,7 @@ use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
 
 /// Which block is being checked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
+pub(crate) enum Kind {
     /// A `udp` block.
     Udp,
     /// A `tcp` block.
@@ -20,7 +20,7 @@ pub enum Kind {
 }
 
 /// Checks the statements of one `udp` or `tcp` block; `None` after reporting its errors.
-pub fn check(
+pub(crate) fn check(
     ast: &Ast<'_>,
     kind: Kind,
     settings: &[SocketSetting],

@@ -9,7 +9,7 @@ use super::model::{Interface, StatsEndpoint};
 use super::sockets::{self, Kind};
 
 /// Checks the statements of a `stats` block; `None` after reporting its errors.
-pub fn check(
+pub(crate) fn check(
     ast: &Ast<'_>,
     _keyword: Span,
     settings: &[SocketSetting],

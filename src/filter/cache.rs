@@ -1,5 +1,5 @@
 //! A bounded memo of filter verdicts keyed by (message id, source, destination, signed),
-//! each with the number of its rule walk's trace (see [`super::trace`]) so that answers
+//! each with the number of its rule walk's trace (see `super::trace`) so that answers
 //! from the memo still count the rules that matched.
 //!
 //! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was

@@ -5,7 +5,7 @@
 //! The result of the filter depends only on the packet's message id, its source address,
 //! the destination address being filtered for and whether the packet arrived signed, so
 //! [`Filter`] memoizes it in a small bounded cache ([`cache`]): a router that evaluates
-//! the filter once per candidate address per link pays the rule walk ([`eval`]) only for
+//! the filter once per candidate address per link pays the rule walk (`eval`) only for
 //! the first packet of each (message id, source, destination, signed) key, however many
 //! rules the configuration has.
 //!

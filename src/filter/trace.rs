@@ -13,7 +13,7 @@
 use std::collections::HashMap;
 
 /// Most distinct traces kept; real configurations produce a handful.
-pub const MAX_TRACES: usize = 4096;
+pub(crate) const MAX_TRACES: usize = 4096;
 
 /// The counts of one rule: evaluations its condition matched, and how many of them it
 /// decided.

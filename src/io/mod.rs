@@ -9,7 +9,7 @@
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `notify`: systemd's readiness, reload and watchdog notifications;
 //! - `log`: log lines and messages, written without ever blocking the loop;
-//! - `recorder`: `.tlog` recordings, written by a thread of their own; [`manifest`]: the
+//! - `recorder`: `.tlog` recordings, written by a thread of their own; `manifest`: the
 //!   file listing the recordings it created (the only ones it removes);
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.

@@ -22,7 +22,7 @@ use super::FilePattern;
 
 /// The longest list read (a longer file is not one mavtables wrote) or written (the
 /// oldest entries are left out): some 20 000 recordings.
-pub const MAX_BYTES: usize = 1 << 20;
+pub(crate) const MAX_BYTES: usize = 1 << 20;
 
 /// What the list file's name adds to the pattern.
 const EXTENSION: &str = ".mavtables";
@@ -53,7 +53,7 @@ pub struct Created {
 
 /// What is at a listed name now.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Found {
+pub(crate) enum Found {
     /// Nothing.
     Gone,
     /// Something that cannot be looked at now (no permission, an I/O error).
@@ -71,7 +71,7 @@ pub enum Found {
 
 /// What a listed name is now.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Verdict {
+pub(crate) enum Verdict {
     /// The recording the router created: rotation may remove it.
     Ours,
     /// Not, or no longer, the file created: the entry goes.
@@ -82,7 +82,7 @@ pub enum Verdict {
 
 /// What `entry` is, given what is `found` at its name, for a router running as user
 /// `us`.
-pub fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> Verdict {
+pub(crate) fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> Verdict {
     if !pattern.matches(&entry.name) {
         return Verdict::Forget;
     }
@@ -99,7 +99,7 @@ pub fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> V
 /// Whether a list file owned by `owner` with permission bits `mode` may be believed by
 /// a router running as user `us`: only if `us` owns it and nobody else may write it
 /// (anyone else could list a file of `us` for removal). `Err` says why not.
-pub fn trust(owner: u32, mode: u32, us: u32) -> Result<(), String> {
+pub(crate) fn trust(owner: u32, mode: u32, us: u32) -> Result<(), String> {
     if owner != us {
         return Err(format!(
             "it belongs to user {owner}, not to the user mavtables runs as ({us})"
@@ -148,7 +148,7 @@ impl Manifest {
     }
 
     /// The text of the list file for `pattern`: a comment saying what it is, then one
-    /// line per recording. When that would be longer than [`MAX_BYTES`] the oldest are
+    /// line per recording. When that would be longer than `MAX_BYTES` the oldest are
     /// left out; how many is the second value.
     pub fn to_text(&self, pattern: &FilePattern) -> (String, usize) {
         let header = format!(

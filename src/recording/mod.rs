@@ -1,8 +1,8 @@
-//! Recording what flows, sans-IO: which frames are recorded ([`filter`]), the core's
-//! bounded tap of them ([`tap`]), file names from the `record { path …; }` pattern
-//! ([`pattern`]), the list of the recordings the router created, the only files it may
-//! remove ([`manifest`]), which of them go when files are rotated or the disk fills
-//! ([`rotation`]) and the counters ([`counters`]). The writer thread that puts records on
+//! Recording what flows, sans-IO: which frames are recorded (`filter`), the core's
+//! bounded tap of them (`tap`), file names from the `record { path …; }` pattern
+//! (`pattern`), the list of the recordings the router created, the only files it may
+//! remove (`manifest`), which of them go when files are rotated or the disk fills
+//! (`rotation`) and the counters (`counters`). The writer thread that puts records on
 //! the disk is `src/io/recorder.rs`.
 //!
 //! A recording is a `.tlog`: each record is the time of arrival (8 bytes, big-endian

@@ -69,11 +69,11 @@ pub struct FilePattern {
 }
 
 /// The largest suffix tried when a file name is taken (`-1` … `-9999`).
-pub const MAX_SUFFIX: u32 = 9999;
+pub(crate) const MAX_SUFFIX: u32 = 9999;
 
 /// The longest file name (in bytes) the file systems mavtables runs on allow (Linux's
 /// `NAME_MAX`).
-pub const NAME_MAX: usize = 255;
+pub(crate) const NAME_MAX: usize = 255;
 
 const NOTE: &str = "the file name may use %Y %m %d %H %M %S (the time the file is opened) and %% (a '%'), e.g. /var/log/mavtables/%Y-%m-%d_%H-%M-%S.tlog";
 

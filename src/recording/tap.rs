@@ -8,7 +8,7 @@ use crate::time::Timestamp;
 use crate::wire::Frame;
 
 /// What the tap holds at most between two takes: far more than one loop turn receives.
-pub const TAP_BOUND: usize = 1 << 20;
+pub(crate) const TAP_BOUND: usize = 1 << 20;
 
 /// Frames waiting to be recorded.
 #[derive(Debug, Default)]

@@ -27,7 +27,7 @@ pub enum Decision {
 #[inline]
 // The packet's facts as plain values, as the per-link hot loop has them at hand.
 #[allow(clippy::too_many_arguments)]
-pub fn decide(
+pub(crate) fn decide(
     filter: &mut Filter,
     pool: &AddressPool,
     reaches_unknown: bool,

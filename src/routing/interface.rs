@@ -27,11 +27,11 @@ pub struct InterfaceId(pub usize);
 /// this much time at the configured rate beyond the largest datagram, but never more
 /// than one more largest datagram: a burst is at most one datagram plus at most one
 /// datagram's worth of catching up.
-pub const PACING_SLACK_MICROS: u64 = 5_000;
+pub(crate) const PACING_SLACK_MICROS: u64 = 5_000;
 
 /// The pacer of an interface limited to `rate` bit/s (0 = unlimited), with
 /// [`PACING_SLACK_MICROS`] of slack.
-pub fn pacer_for(rate: u64) -> Pacer {
+pub(crate) fn pacer_for(rate: u64) -> Pacer {
     let slack =
         (rate.saturating_mul(PACING_SLACK_MICROS) / 8 / 1_000_000).min(u64::from(DEFAULT_BURST));
     let burst = u64::from(DEFAULT_BURST).saturating_add(slack);

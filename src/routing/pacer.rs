@@ -23,7 +23,7 @@ use crate::time::Timestamp;
 
 /// Bucket depth by default: the largest MAVLink frame (a signed v2 frame with a 255-byte
 /// payload), since the router sends one frame per datagram.
-pub const DEFAULT_BURST: u32 = 280;
+pub(crate) const DEFAULT_BURST: u32 = 280;
 
 const NANOS_PER_SEC: u128 = 1_000_000_000;
 

@@ -6,7 +6,7 @@ use crate::address::Address;
 use crate::time::Timestamp;
 
 /// How long a learned address stays without being heard from (the original's 120 s).
-pub const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);
+pub(crate) const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);
 
 #[derive(Debug, Clone, Copy)]
 struct Entry {

@@ -10,18 +10,18 @@ pub use crate::wire::Packet;
 /// 256 kbit/s link drains them — two senders of 5,000 ENCAPSULATED_DATA each, a load the
 /// original's unbounded queues delivered whole — so that configurations that worked with
 /// the original keep working. [`DEFAULT_TOTAL_CAPACITY`] bounds all links together.
-pub const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
+pub(crate) const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
 
 /// Bytes all queues together hold by default: 16 MiB, so that no number of links (a
 /// flood of spoofed UDP senders included) takes the router's memory beyond a few tens of
 /// MiB, while four links can each hold a full [`DEFAULT_CAPACITY`] at once. (Queues
 /// charge every packet to every queue holding it, though they share its bytes, so the
 /// memory they really use is at most this.)
-pub const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
+pub(crate) const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
 
 /// Bytes charged per packet on top of its length (shared-buffer header and queue slot),
 /// so that a flood of tiny packets is bounded too.
-pub const PACKET_OVERHEAD: usize = 32;
+pub(crate) const PACKET_OVERHEAD: usize = 32;
 
 /// What [`PacketQueue::push`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,7 +46,7 @@ struct Bucket {
 /// Bounded priority queue of packets.
 ///
 /// Order: higher priority first; equal priorities in arrival order. Bound: the sum of
-/// packet lengths plus [`PACKET_OVERHEAD`] each never exceeds the capacity. When a new
+/// packet lengths plus `PACKET_OVERHEAD` each never exceeds the capacity. When a new
 /// packet does not fit, the lowest-priority, oldest packets are dropped until it does;
 /// if it still could not fit after dropping everything of its own priority or lower, the
 /// new packet itself is dropped instead (a new packet never displaces a higher-priority
@@ -63,7 +63,7 @@ pub struct PacketQueue {
 }
 
 impl PacketQueue {
-    /// An empty queue holding at most `capacity` bytes (see [`PACKET_OVERHEAD`]).
+    /// An empty queue holding at most `capacity` bytes (see `PACKET_OVERHEAD`).
     pub fn new(capacity: usize) -> Self {
         PacketQueue {
             buckets: BTreeMap::new(),
@@ -126,7 +126,7 @@ impl PacketQueue {
         self.dropped += 1;
     }
 
-    /// What `packet` counts against a capacity: its length plus [`PACKET_OVERHEAD`].
+    /// What `packet` counts against a capacity: its length plus `PACKET_OVERHEAD`.
     pub fn cost_of(packet: &[u8]) -> usize {
         packet.len().saturating_add(PACKET_OVERHEAD)
     }

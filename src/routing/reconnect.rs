@@ -7,12 +7,12 @@ use std::time::Duration;
 use crate::time::Timestamp;
 
 /// First wait before trying again to open a missing device.
-pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
+pub(crate) const FIRST_BACKOFF: Duration = Duration::from_millis(100);
 /// Longest wait between attempts to open a missing device.
-pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+pub(crate) const MAX_BACKOFF: Duration = Duration::from_secs(2);
 /// Longest wait between attempts of a TCP client to reach its server, so that it is
 /// connected again within a second of the server's return.
-pub const MAX_RECONNECT_WAIT: Duration = Duration::from_secs(1);
+pub(crate) const MAX_RECONNECT_WAIT: Duration = Duration::from_secs(1);
 
 /// The state of a stream's connection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

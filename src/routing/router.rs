@@ -23,9 +23,9 @@ use crate::wire::Frame;
 pub struct RouterOptions {
     /// How long a learned address lasts without traffic (120 s).
     pub expiry: Duration,
-    /// Bytes each link's queue may hold ([`DEFAULT_CAPACITY`]).
+    /// Bytes each link's queue may hold (`DEFAULT_CAPACITY`).
     pub queue_capacity: usize,
-    /// Bytes all queues together may hold ([`DEFAULT_TOTAL_CAPACITY`]). A
+    /// Bytes all queues together may hold (`DEFAULT_TOTAL_CAPACITY`). A
     /// packet that would pass it first pushes out the oldest packets of the lowest
     /// priority queued anywhere (from the link holding the most, among equals) until an
     /// eighth of it is free, or is dropped itself if everything queued ranks above it.
@@ -440,12 +440,12 @@ impl Router {
         self.filter.counts()
     }
 
-    /// Frames per (source, message type) (bounded; see [`SourceTable`]).
+    /// Frames per (source, message type) (bounded; see `SourceTable`).
     pub fn sources_mut(&mut self) -> &mut SourceTable {
         &mut self.sources
     }
 
-    /// Sequence gaps per source (bounded; see [`Sequences`]).
+    /// Sequence gaps per source (bounded; see `Sequences`).
     pub fn sequences(&self) -> &Sequences {
         &self.sequences
     }

@@ -20,14 +20,14 @@ use crate::time::Timestamp;
 /// What the statistics need of the configuration, kept from the start: chain names and
 /// rule texts (in the filter's flat rule order), and the default action.
 #[derive(Debug, Clone, Default)]
-pub struct RuleBook {
+pub(crate) struct RuleBook {
     chains: Vec<(String, Vec<String>)>,
     default_action: &'static str,
 }
 
 impl RuleBook {
     /// The chains and default action of `config`.
-    pub fn new(config: &Config) -> Self {
+    pub(crate) fn new(config: &Config) -> Self {
         RuleBook {
             chains: config
                 .chains
@@ -46,7 +46,7 @@ impl RuleBook {
 }
 
 /// Everything [`snapshot`] reads.
-pub struct Sources<'a> {
+pub(crate) struct Sources<'a> {
     /// The router.
     pub router: &'a mut Router,
     /// The interfaces.
@@ -58,7 +58,7 @@ pub struct Sources<'a> {
 }
 
 /// The snapshot at `now` (rates over the time since the previous snapshot).
-pub fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
+pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
     let now_s = now.since_start().as_secs_f64();
     let dt = src.history.interval(now_s);
     let mut interfaces: Vec<InterfaceStats> = Vec::new();

@@ -24,11 +24,11 @@ use std::hash::{BuildHasherDefault, Hasher};
 use crate::address::Address;
 
 /// Entries of the (source, message) table.
-pub const SOURCE_TABLE_ENTRIES: usize = 4096;
+pub(crate) const SOURCE_TABLE_ENTRIES: usize = 4096;
 /// Ways of each set of the (source, message) table.
 const WAYS: usize = 4;
 /// Most source addresses whose sequence numbers are followed.
-pub const MAX_SEQUENCE_SOURCES: usize = 4096;
+pub(crate) const MAX_SEQUENCE_SOURCES: usize = 4096;
 
 /// One (source, message) pair's counts.
 #[derive(Debug, Clone, Copy, Default)]
@@ -152,7 +152,7 @@ pub struct SequenceCount {
 /// A hasher for small integer keys: one multiply (the keys are not chosen to collide
 /// by anyone who could gain from it; the table is bounded anyway).
 #[derive(Debug, Default, Clone, Copy)]
-pub struct IntHasher(u64);
+pub(crate) struct IntHasher(u64);
 
 impl Hasher for IntHasher {
     fn finish(&self) -> u64 {

@@ -20,7 +20,7 @@ use crate::wire::header::MAX_FRAME_LEN;
 
 /// Quiet time beyond a largest frame's transmission time after which held-back bytes
 /// are judged.
-pub const STALE_GAP: Duration = Duration::from_millis(100);
+pub(crate) const STALE_GAP: Duration = Duration::from_millis(100);
 
 /// The quiet-line rule of one byte stream or datagram interface.
 #[derive(Debug, Clone, Copy)]

@@ -1,9 +1,9 @@
-//! MAVLink 2 signing at the router's edge: the keys interfaces are given ([`key`]), the
+//! MAVLink 2 signing at the router's edge: the keys interfaces are given (`key`), the
 //! check of signed frames that arrive and the replay protection of their timestamps
 //! ([`verify`], [`streams`]), the signatures the router adds to frames it sends ([`sign`]),
 //! the router's own signing clock ([`clock`]), the saved stream table that outlives a
-//! restart ([`state`]), and how the routing core holds all of it ([`edge`]). All of it but
-//! [`key`], which reads key files (through [`crate::files`]), is sans-IO: time comes in
+//! restart ([`state`]), and how the routing core holds all of it (`edge`). All of it but
+//! `key`, which reads key files (through `crate::files`), is sans-IO: time comes in
 //! as arguments, state goes out as text for the I/O layer to write. The bytes of a
 //! signature are computed and written by [`crate::wire::signing`].
 
