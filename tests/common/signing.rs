@@ -1,4 +1,4 @@
-//! Helpers of the signing tests (`tests/signing_peers.rs`, `tests/signing_attacks.rs`):
+//! Helpers of the signing tests (`tests/e2e/signing_peers.rs`, `tests/signing_attacks.rs`):
 //! keys and key files, the router's signing clock, signed frames made with the crate's
 //! encoder, the pymavlink signing peer (`tests/py/signing_peer.py`) and signing vehicle
 //! (`tests/py/signing_vehicle.py`), MAVProxy with extra options, and the signing part of

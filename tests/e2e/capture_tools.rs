@@ -2,7 +2,7 @@
 //! vector verdicts, decoding compared with pymavlink, bad input, and replay over real
 //! UDP sockets and a real pseudo-terminal.
 
-mod common;
+use crate::common;
 
 use std::io::Read;
 use std::net::UdpSocket;

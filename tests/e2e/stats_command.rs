@@ -1,7 +1,7 @@
 //! `mavtables stats` as users run it: the real binary asking an HTTP endpoint over
 //! 127.0.0.1, its exact output, its one-line errors and `--watch` without a terminal.
 
-mod common;
+use crate::common;
 
 use std::io::Read;
 use std::process::{Command, Stdio};

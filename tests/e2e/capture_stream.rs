@@ -7,7 +7,7 @@
 //! (commit 9b8c354), in `tests/golden/inspect.tsv`. To record them again from another
 //! build: `MAVTABLES_GOLDEN_BIN=/path/to/old/mavtables cargo test --test capture_stream`.
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 use std::io::{Read, Write};

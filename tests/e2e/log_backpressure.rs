@@ -6,7 +6,7 @@
 //! Synchronisation is on events: the router's port being bound, its `new component`
 //! log line (read before the reading stops), the listener receiving each burst.
 
-mod common;
+use crate::common;
 
 use std::collections::HashSet;
 use std::io::{BufRead, BufReader};

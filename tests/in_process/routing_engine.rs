@@ -3,7 +3,7 @@
 //! the line goes quiet, link expiry, and the backoff for reopening a lost device. No
 //! sockets, no sleeps: time is a value the test moves.
 
-mod routing;
+use crate::routing;
 
 use std::collections::{BTreeMap, VecDeque};
 use std::net::SocketAddr;

@@ -5,7 +5,7 @@
 //! [`MEMORY_LIMIT`] of address space, so a regression fails instead of hanging or eating
 //! the machine's memory.
 
-mod common;
+use crate::common;
 
 use std::fs::File;
 use std::io::Read;

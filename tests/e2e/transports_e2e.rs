@@ -3,7 +3,7 @@
 //! limits on who may become a link. The real `mavtables` binary and plain sockets of our
 //! own on 127.0.0.1 and [::1]; every wait is bounded and ends on an event.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener, UdpSocket};

@@ -2,7 +2,7 @@
 //! `signing_state` and `if signed|unsigned`, their model, `--ast` and located errors, key
 //! files (format, permissions) and that nothing secret is ever printed.
 
-mod common;
+use crate::common;
 
 use mavtables::address::{Address, Subnet};
 use mavtables::config::{self, Condition, Config, Interface, InterfaceSigning, print_tree};

@@ -3,7 +3,7 @@
 //! the rendered DOM is checked; a screenshot is saved and checked to be a plausible PNG.
 //! A fixture server stands in for a router that stops answering and comes back.
 
-mod common;
+use crate::common;
 
 use common::browser;
 use common::http_fixture::{Answer, HttpFixture};
@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
-const PAGE: &str = include_str!("../src/stats/page.html");
+const PAGE: &str = include_str!("../../src/stats/page.html");
 
 /// Statistics that change with each request `n`, in the shape the router serves (for
 /// the fixture server).

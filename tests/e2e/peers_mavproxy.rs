@@ -21,7 +21,7 @@
 //! `VehicleLink::Udp("127.0.0.1:P")`, `Tcp("127.0.0.1:P")` or `TcpListen("P")`.
 //! A scratch tag must not contain "udp": `Router::start` finds the UDP ports by that word.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeSet;
 

@@ -1,7 +1,7 @@
 //! Every routing case of the original (broadcast, system broadcast, targeted, component
 //! fallback, loop prevention, priorities), on the routing core with an injected clock.
 
-mod routing;
+use crate::routing;
 
 use routing::Net;
 

@@ -6,7 +6,7 @@
 //! plain `cargo test`, `scripts/test` runs them, and without the right to mount they fail
 //! saying so. Others run the router under a file-size limit (`prlimit`).
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::path::{Path, PathBuf};

@@ -5,7 +5,7 @@
 //! sockets of our own on 127.0.0.1; every wait is bounded and ends on an event (a log
 //! line, a received frame, a counters report, a count in `/proc`).
 
-mod common;
+use crate::common;
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};

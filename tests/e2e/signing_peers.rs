@@ -17,9 +17,8 @@
 //! A scratch tag or file name must not contain "udp": `Router::start` finds the UDP ports
 //! by that word.
 
-mod common;
-#[path = "common/signing.rs"]
-mod signing;
+use crate::common;
+use crate::signing;
 
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};

@@ -2,7 +2,7 @@
 //! frames it signs verify with our code, frames we sign verify with it, and our encoder
 //! reproduces its signed frames byte for byte.
 
-mod common;
+use crate::common;
 
 use common::{hex, run_py, unhex};
 use mavtables::wire::Frame;

@@ -2,7 +2,7 @@
 //! expiry: the shared byte count always equals what the queues hold, never passes the
 //! shared capacity, and every packet offered is either queued, sent or counted as a drop.
 
-mod routing;
+use crate::routing;
 
 use mavtables::routing::RouterOptions;
 use proptest::prelude::*;

@@ -1,7 +1,7 @@
 //! The original's integration scenarios (routing, priority, preload, component
 //! broadcast fallback) rebuilt on the routing core, plus expiry over time.
 
-mod routing;
+use crate::routing;
 
 use mavtables::routing::{Pace, Pacer, RouterOptions, Timestamp};
 use routing::{Net, frame};
@@ -11,7 +11,7 @@ use std::time::Duration;
 const ROUTING: &str = concat!(
     "serial { device ./ttyS0; baudrate 57600; }\n",
     "udp { port 14500; max_bitrate 262144; }\n",
-    include_str!("data/config/routing_chains.conf"),
+    include_str!("../data/config/routing_chains.conf"),
 );
 
 const SENDER: &str = "127.0.0.1:5000";

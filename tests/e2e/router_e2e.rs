@@ -7,7 +7,7 @@
 //! Synchronisation is on events, never on sleeps: the router's UDP ports being bound,
 //! its `new component S.C on LINK` log lines, the peers' "setup"/"ready"/"done" lines.
 
-mod common;
+use crate::common;
 
 use std::io::{Read, Write};
 use std::net::UdpSocket;
@@ -345,7 +345,7 @@ fn multiple_senders_at_once() {
 // ----------------------------------------------------------------------------------------
 // 3 and 4. Routing with the log at levels 1, 2 and 3
 
-const ROUTING: &str = include_str!("data/config/routing_chains.conf");
+const ROUTING: &str = include_str!("../data/config/routing_chains.conf");
 
 /// What the sender (10.10) sends after its HEARTBEAT.
 const ROUTING_SCRIPT: [&str; 10] = [

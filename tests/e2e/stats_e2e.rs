@@ -9,7 +9,7 @@
 //! Synchronisation is on events: frames arriving at a peer, and `/stats` polled
 //! (bounded) until its counters show the last frame sent.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::io::{Read, Write};

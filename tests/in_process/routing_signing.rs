@@ -3,7 +3,7 @@
 //! the way out, and the saved state that keeps replays out after a restart. Peers and
 //! sockets are in `tests/signing_*.rs`.
 
-mod routing;
+use crate::routing;
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;

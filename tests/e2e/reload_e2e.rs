@@ -4,7 +4,7 @@
 //! on the router's standard error or output, a received frame, a notification), never
 //! on a sleep.
 
-mod common;
+use crate::common;
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, UdpSocket};

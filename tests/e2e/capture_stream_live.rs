@@ -2,7 +2,7 @@
 //! its bytes arrive on standard input, before the input ends; and `inspect` reads a
 //! capture of any size in constant memory.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::UdpSocket;

@@ -1,7 +1,7 @@
 //! The parser against real data: the shared test vectors (verdicts from
 //! `tests/data/MANIFEST.md`) and a real 33,261-frame flight as `.tlog`, raw stream and `.pcap`.
 
-mod common;
+use crate::common;
 
 use common::{Verdict, manifest, read_data};
 use mavtables::capture::{pcap, tlog};
