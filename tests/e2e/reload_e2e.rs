@@ -16,9 +16,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use common::eventually;
 use common::net::{
     SECOND, attitude, connect, free_tcp_port, heartbeat, number_of, numbered, udp_frames,
-    wait_until,
 };
 use common::router::{BIN, Guard, Lines, Router, Scratch, free_udp_port, udp_port_bound};
 use mavtables::wire::Parser;
@@ -210,7 +210,7 @@ fn fifty_reloads_under_load_lose_nothing() {
     };
     for i in 0..50u32 {
         // Spread over about a second of traffic: a reload every 20 frames.
-        wait_until("the sender to go on", 10 * SECOND, || {
+        eventually("the sender to go on", 10 * SECOND, || {
             sent.load(Ordering::Acquire) >= (i + 1) * 20
         });
         let rules = if i % 2 == 0 { OTHER_RULES } else { TWO_RULES };

@@ -9,8 +9,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use common::eventually;
 use common::http_fixture::{Answer, HttpFixture};
-use common::net::{SECOND, attitude, heartbeat, udp_frames, wait_until};
+use common::net::{SECOND, attitude, heartbeat, udp_frames};
 use common::router::{BIN, Guard, Scratch, free_udp_port};
 use common::stats_router;
 use std::net::UdpSocket;
@@ -97,7 +98,7 @@ fn counts_of_a_scripted_scenario_exactly() {
 
     // The ground station speaks first: the router learns it (nowhere to send yet).
     send(&gcs, &heartbeat(255));
-    wait_until("the ground station's link", Duration::from_secs(10), || {
+    eventually("the ground station's link", Duration::from_secs(10), || {
         stats_router::stats(port)["links"]
             .as_array()
             .is_some_and(|l| l.len() == 1)

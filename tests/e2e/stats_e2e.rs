@@ -17,6 +17,7 @@ use std::net::{TcpStream, UdpSocket};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use common::eventually;
 use common::net::{SECOND, frame, free_tcp_port, udp_frames};
 use common::router::{Router, Scratch, free_udp_port};
 use serde_json::Value;
@@ -45,32 +46,24 @@ fn request(mut s: TcpStream, path: &str) -> (u16, String) {
 
 /// `/stats`, once the endpoint answers (it starts with the router).
 fn stats(port: u16) -> Value {
-    let deadline = Instant::now() + 10 * SECOND;
-    loop {
-        if let Ok(s) = TcpStream::connect(("127.0.0.1", port)) {
-            let (code, body) = request(s, "/stats");
-            assert_eq!(code, 200, "{body}");
-            return serde_json::from_str(&body).expect("/stats is JSON");
-        }
-        assert!(Instant::now() < deadline, "the endpoint never listened");
-        thread::sleep(Duration::from_millis(10));
-    }
+    let s = eventually("the endpoint listening", 10 * SECOND, || {
+        TcpStream::connect(("127.0.0.1", port)).ok()
+    });
+    let (code, body) = request(s, "/stats");
+    assert_eq!(code, 200, "{body}");
+    serde_json::from_str(&body).expect("/stats is JSON")
 }
 
 /// Polls `/stats` (bounded) until `done` holds; returns that snapshot.
 fn stats_when(port: u16, what: &str, done: impl Fn(&Value) -> bool) -> Value {
-    let deadline = Instant::now() + 10 * SECOND;
-    loop {
+    eventually(what, 10 * SECOND, || {
         let s = stats(port);
         if done(&s) {
-            return s;
+            Ok(s)
+        } else {
+            Err(format!("last /stats: {s:#}"))
         }
-        assert!(
-            Instant::now() < deadline,
-            "{what}: not within 10 s; last /stats: {s:#}"
-        );
-        thread::sleep(Duration::from_millis(20));
-    }
+    })
 }
 
 /// The link named `name` of a `/stats` snapshot, if it has one.

@@ -6,8 +6,9 @@
 use crate::common;
 
 use common::browser;
+use common::eventually;
 use common::http_fixture::{Answer, HttpFixture};
-use common::net::{attitude, heartbeat, wait_until};
+use common::net::{attitude, heartbeat};
 use common::router::{Scratch, free_udp_port};
 use common::stats_router;
 use std::net::UdpSocket;
@@ -118,7 +119,7 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
     let name = |s: &UdpSocket| s.local_addr().expect("addr").to_string();
     let (g, v, x) = (name(&gcs), name(&vehicle), name(&intruder));
     gcs.send(&heartbeat(255)).expect("send");
-    wait_until("the ground station's link", Duration::from_secs(10), || {
+    eventually("the ground station's link", Duration::from_secs(10), || {
         stats_router::stats(port)["links"]
             .as_array()
             .is_some_and(|l| l.len() == 1)
@@ -137,7 +138,7 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
             std::thread::sleep(Duration::from_millis(50));
         }
     });
-    wait_until("the vehicle's rate", Duration::from_secs(10), || {
+    eventually("the vehicle's rate", Duration::from_secs(10), || {
         let s = stats_router::stats(port);
         s["links"].as_array().is_some_and(|links| {
             links

@@ -12,9 +12,10 @@ use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
+use common::eventually;
 use common::net::{
     ACCEPT_ALL, Counters, SECOND, attitude, connect, counters, fd_count, free_tcp_port, heartbeat,
-    number_of, numbered, numbered_large, status_bytes, tcp_frames, wait_until,
+    number_of, numbered, numbered_large, status_bytes, tcp_frames,
 };
 use common::router::{Router, Scratch, free_udp_port};
 use mavtables::wire::Parser;
@@ -44,19 +45,14 @@ fn join(router: &mut Router, to: &str, sys: u8) -> TcpStream {
 
 /// Polls the counters report until `check` holds (at most 10 s); returns that report.
 fn counters_until(router: &mut Router, what: &str, check: impl Fn(&Counters) -> bool) -> Counters {
-    let deadline = Instant::now() + 10 * SECOND;
-    loop {
+    eventually(what, 10 * SECOND, || {
         let c = counters(router);
         if check(&c) {
-            return c;
+            Ok(c)
+        } else {
+            Err(format!("last report:\n{}", c.text))
         }
-        assert!(
-            Instant::now() < deadline,
-            "{what}: never; last report:\n{}",
-            c.text
-        );
-        thread::sleep(Duration::from_millis(20));
-    }
+    })
 }
 
 /// Deterministic noise (xorshift64*): the same bytes on every run.
@@ -523,7 +519,7 @@ fn a_thousand_short_connections_leave_nothing_behind() {
     for i in 0..CYCLES {
         cycle(i);
     }
-    wait_until("every connection closed", 20 * SECOND, || {
+    eventually("every connection closed", 20 * SECOND, || {
         fd_count(pid) == baseline_fds
     });
     let took = start.elapsed();
