@@ -44,7 +44,7 @@ fuzz_target!(|data: &[u8]| {
         max_peers: 3,
         allow: Vec::new(),
     };
-    let listener = e.add_listener("tcp".into(), limits);
+    let listener = e.add_listener("tcp".into(), limits, 64_000);
     let client = e.add_datagram_client("udp client".into(), "gcs", 0, now);
     let mut accepted: Vec<mavtables::routing::InterfaceId> = Vec::new();
     let peers: [SocketAddr; 3] = [1, 2, 3].map(|p| SocketAddr::from(([127, 0, 0, 1], p)));
@@ -111,7 +111,7 @@ fuzz_target!(|data: &[u8]| {
             6 => e.stream_lost(serial, now, &"unplugged"),
             7 => {
                 let peer = peers[usize::from(arg) % 3];
-                if let Some(id) = e.accept(listener, peer, u64::from(arg) * 1000, now) {
+                if let Some(id) = e.accept(listener, peer, now) {
                     accepted.push(id);
                 }
             }
