@@ -39,7 +39,7 @@ impl Timestamp {
     }
 
     /// Nanoseconds since the start.
-    pub const fn as_nanos(self) -> u128 {
+    pub(crate) const fn as_nanos(self) -> u128 {
         self.0.as_nanos()
     }
 

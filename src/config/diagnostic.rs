@@ -27,7 +27,7 @@ impl Diagnostic {
     }
 
     /// Adds a note line.
-    pub fn with_note(mut self, note: impl Into<String>) -> Self {
+    pub(crate) fn with_note(mut self, note: impl Into<String>) -> Self {
         self.notes.push(note.into());
         self
     }
@@ -145,13 +145,13 @@ pub struct Position {
 impl Position {
     /// The position of byte `offset` in `src` (clamped to the end, moved back to a character
     /// boundary if needed).
-    pub fn of(src: &str, offset: usize) -> Position {
+    pub(crate) fn of(src: &str, offset: usize) -> Position {
         Position::in_index(&LineIndex::new(src), src, offset)
     }
 
     /// Like [`Position::of`], with the line starts of `src` already indexed (for many
     /// lookups in one source).
-    pub fn in_index(lines: &LineIndex, src: &str, offset: usize) -> Position {
+    pub(crate) fn in_index(lines: &LineIndex, src: &str, offset: usize) -> Position {
         let mut offset = offset.min(src.len());
         while !src.is_char_boundary(offset) {
             offset -= 1;
@@ -167,7 +167,7 @@ impl Position {
     }
 
     /// The text of the line holding this position, without its line ending.
-    pub fn line_text<'a>(&self, src: &'a str) -> &'a str {
+    pub(crate) fn line_text<'a>(&self, src: &'a str) -> &'a str {
         let rest = &src[self.line_start..];
         let line = rest.split('\n').next().unwrap_or("");
         line.strip_suffix('\r').unwrap_or(line)

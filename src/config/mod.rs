@@ -73,7 +73,7 @@ impl Span {
     }
 
     /// True when the range holds no bytes.
-    pub const fn is_empty(&self) -> bool {
+    pub(crate) const fn is_empty(&self) -> bool {
         self.end <= self.start
     }
 }

@@ -33,7 +33,7 @@ impl Config {
     /// A configuration of `interfaces` only: every packet is accepted (`default_action
     /// accept`, an empty `default` chain) and the queues keep their default bounds. What
     /// command-line endpoints run.
-    pub fn accept_all(interfaces: Vec<Interface>) -> Self {
+    pub(crate) fn accept_all(interfaces: Vec<Interface>) -> Self {
         Config {
             default_action: DefaultAction::Accept,
             interfaces,
@@ -197,7 +197,7 @@ impl UdpInterface {
 
     /// How messages and counters name it: `udp ADDRESS:PORT` for a server, `udp connect
     /// HOST:PORT` for a client.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match &self.connect {
             None => format!("udp {}", SocketAddr::new(self.local_address(), self.port)),
             Some(remote) => format!("udp connect {remote}"),
@@ -235,7 +235,7 @@ impl TcpInterface {
 
     /// How messages and counters name it: `tcp ADDRESS:PORT` for a server, `tcp connect
     /// HOST:PORT` for a client.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match &self.connect {
             None => format!("tcp {}", SocketAddr::new(self.local_address(), self.port)),
             Some(remote) => format!("tcp connect {remote}"),

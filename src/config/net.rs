@@ -47,7 +47,7 @@ pub struct IpRange {
 impl IpRange {
     /// Whether `ip` is in the range. An IPv4-mapped IPv6 address (`::ffff:a.b.c.d`, as a
     /// dual-stack socket reports IPv4 peers) counts as the IPv4 address `a.b.c.d`.
-    pub fn contains(&self, ip: IpAddr) -> bool {
+    pub(crate) fn contains(&self, ip: IpAddr) -> bool {
         let ip = match ip {
             IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(ip, IpAddr::V4),
             v4 => v4,

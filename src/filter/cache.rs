@@ -111,7 +111,7 @@ impl VerdictCache {
 
     /// The remembered verdict and its trace number, if any.
     #[inline]
-    pub fn get_traced(
+    pub(crate) fn get_traced(
         &mut self,
         message_id: u32,
         source: Address,
@@ -148,7 +148,7 @@ impl VerdictCache {
     /// Remembers `verdict` and its trace number `trace` (below 2^31), replacing the
     /// slot's previous entry.
     #[inline]
-    pub fn insert_traced(
+    pub(crate) fn insert_traced(
         &mut self,
         message_id: u32,
         source: Address,

@@ -135,7 +135,7 @@ impl Filter {
 
     /// Goes on from `counts` (by this filter's flat rule numbers): what a reload carried
     /// over from the filter this one replaces is part of [`Filter::counts`] from now on.
-    pub fn carry_counts(&mut self, counts: &FilterCounts) {
+    pub(crate) fn carry_counts(&mut self, counts: &FilterCounts) {
         self.traces.carry(counts);
     }
 

@@ -575,7 +575,7 @@ pub(super) fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
 /// needs checksum offload and refuses such sockets, so tests use it to see the GSO
 /// fallback at work.
 #[cfg(test)]
-pub fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
+pub(crate) fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
     let one: libc::c_int = 1;
     // SAFETY: passes a pointer to a live c_int and its size.
     let r = unsafe {

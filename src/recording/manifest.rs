@@ -120,18 +120,18 @@ pub struct Manifest {
 impl Manifest {
     /// The list file's name for `pattern` (in the pattern's directory): a dot, the
     /// pattern's file name as written, `.mavtables`.
-    pub fn file_name(pattern: &FilePattern) -> String {
+    pub(crate) fn file_name(pattern: &FilePattern) -> String {
         format!(".{}{EXTENSION}", pattern.name_pattern())
     }
 
     /// The name the list is written under before it is renamed to
     /// [`Manifest::file_name`].
-    pub fn temp_name(pattern: &FilePattern) -> String {
+    pub(crate) fn temp_name(pattern: &FilePattern) -> String {
         format!("{}{TEMP}", Manifest::file_name(pattern))
     }
 
     /// The length in bytes of the longest name the list takes (the temporary one).
-    pub fn longest_name(pattern: &FilePattern) -> usize {
+    pub(crate) fn longest_name(pattern: &FilePattern) -> usize {
         1 + pattern.name_pattern().len() + EXTENSION.len() + TEMP.len()
     }
 
@@ -182,23 +182,23 @@ impl Manifest {
     }
 
     /// Adds a recording just created (one of the same name is replaced).
-    pub fn add(&mut self, created: Created) {
+    pub(crate) fn add(&mut self, created: Created) {
         self.forget(&created.name);
         self.entries.push(created);
     }
 
     /// Takes `name` off the list.
-    pub fn forget(&mut self, name: &str) {
+    pub(crate) fn forget(&mut self, name: &str) {
         self.entries.retain(|e| e.name != name);
     }
 
     /// The entry for `name`, if it is listed.
-    pub fn get(&self, name: &str) -> Option<&Created> {
+    pub(crate) fn get(&self, name: &str) -> Option<&Created> {
         self.entries.iter().find(|e| e.name == name)
     }
 
     /// Every entry, oldest first.
-    pub fn entries(&self) -> &[Created] {
+    pub(crate) fn entries(&self) -> &[Created] {
         &self.entries
     }
 }

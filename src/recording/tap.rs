@@ -34,7 +34,7 @@ impl Tap {
     /// Keeps `frame`, which arrived at `now` (signed and verified, or not), if the filter
     /// passes it and there is room.
     #[inline]
-    pub fn offer(&mut self, frame: &Frame<'_>, signed: bool, now: Timestamp) {
+    pub(crate) fn offer(&mut self, frame: &Frame<'_>, signed: bool, now: Timestamp) {
         if !self.filter.matches(frame, signed) {
             return;
         }
@@ -52,13 +52,13 @@ impl Tap {
 
     /// True when no frame is waiting.
     #[inline]
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.records.is_empty()
     }
 
     /// Hands every waiting frame to `take` with its time of arrival, oldest first, and
     /// forgets them.
-    pub fn drain(&mut self, take: &mut impl FnMut(Timestamp, &[u8])) {
+    pub(crate) fn drain(&mut self, take: &mut impl FnMut(Timestamp, &[u8])) {
         let mut at = 0;
         for &(now, len) in &self.records {
             let end = at + usize::from(len);

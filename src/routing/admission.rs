@@ -28,7 +28,7 @@ pub struct Refused {
 
 impl Refused {
     /// Counts a refusal; true the first time for its reason (the one worth saying).
-    pub fn count(&mut self, why: Refusal) -> bool {
+    pub(crate) fn count(&mut self, why: Refusal) -> bool {
         let n = match why {
             Refusal::NotAllowed => &mut self.not_allowed,
             Refusal::Full => &mut self.full,

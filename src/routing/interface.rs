@@ -98,7 +98,7 @@ impl Reopen {
 
     /// A TCP client: tried again at once, then with a backoff up to 1 s; what was
     /// queued while it was down longer than `forget_after` is dropped.
-    pub const fn client(forget_after: std::time::Duration) -> Reopen {
+    pub(crate) const fn client(forget_after: std::time::Duration) -> Reopen {
         Reopen {
             first_wait: std::time::Duration::ZERO,
             max_wait: MAX_RECONNECT_WAIT,
@@ -119,7 +119,7 @@ impl Reopen {
 impl Kind {
     /// A stream that is `link`, in state `connection`, accepted by `accepted_by` (if
     /// any), coming back after a loss as `reopen` says.
-    pub fn stream(
+    pub(crate) fn stream(
         link: LinkId,
         connection: Connection,
         accepted_by: Option<InterfaceId>,
@@ -198,19 +198,19 @@ impl LiveInterface {
 
     /// A datagram network interface (no line rate: held-back bytes wait the plain quiet
     /// gap) named `label` in messages and counters alike.
-    pub fn network(label: String, rate: u64, kind: Kind) -> Self {
+    pub(crate) fn network(label: String, rate: u64, kind: Kind) -> Self {
         LiveInterface::new(label.clone(), label, StaleTail::new(None), rate, kind)
     }
 
     /// A TCP interface (a client, a server or one of its connections) named `label`:
     /// its held-back bytes wait for the rest of their frame as long as the connection
     /// lasts.
-    pub fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
+    pub(crate) fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
         LiveInterface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
     }
 
     /// The connection state of an interface that opens (streams, datagram clients).
-    pub fn connection(&self) -> Option<&Connection> {
+    pub(crate) fn connection(&self) -> Option<&Connection> {
         match &self.kind {
             Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
                 Some(connection)
@@ -220,7 +220,7 @@ impl LiveInterface {
     }
 
     /// The connection state, mutable.
-    pub fn connection_mut(&mut self) -> Option<&mut Connection> {
+    pub(crate) fn connection_mut(&mut self) -> Option<&mut Connection> {
         match &mut self.kind {
             Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
                 Some(connection)
@@ -230,7 +230,7 @@ impl LiveInterface {
     }
 
     /// The one link of a client or stream interface.
-    pub fn own_link(&self) -> Option<LinkId> {
+    pub(crate) fn own_link(&self) -> Option<LinkId> {
         match self.kind {
             Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => Some(link),
             Kind::Datagram { .. } | Kind::Listener { .. } => None,
@@ -238,7 +238,7 @@ impl LiveInterface {
     }
 
     /// True while bytes can flow (servers always; others once open).
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         self.connection().is_none_or(Connection::is_open)
     }
 }

@@ -65,7 +65,7 @@ impl Link {
     }
 
     /// The link's id.
-    pub fn id(&self) -> LinkId {
+    pub(crate) fn id(&self) -> LinkId {
         self.id
     }
 
@@ -85,7 +85,7 @@ impl Link {
 
     /// True if broadcasts reach this link before it has learned any address (see
     /// [`LinkKind::Client`]; accepted connections likewise).
-    pub fn reaches_the_unknown(&self) -> bool {
+    pub(crate) fn reaches_the_unknown(&self) -> bool {
         matches!(self.kind, LinkKind::Client | LinkKind::Connection)
     }
 
@@ -100,12 +100,12 @@ impl Link {
     }
 
     /// What went through this link.
-    pub fn counters(&self) -> &LinkCounters {
+    pub(crate) fn counters(&self) -> &LinkCounters {
         &self.counters
     }
 
     /// This link's line of the counters report.
-    pub fn report(&self) -> LinkReport<'_> {
+    pub(crate) fn report(&self) -> LinkReport<'_> {
         LinkReport {
             name: &self.name,
             counters: self.counters,

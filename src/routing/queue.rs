@@ -106,13 +106,13 @@ impl PacketQueue {
     }
 
     /// The priority of the packet [`PacketQueue::drop_lowest`] would drop.
-    pub fn lowest_priority(&self) -> Option<i32> {
+    pub(crate) fn lowest_priority(&self) -> Option<i32> {
         self.buckets.first_key_value().map(|(p, _)| *p)
     }
 
     /// Drops the oldest packet of the lowest priority (counted as a drop) to make room
     /// elsewhere. Returns the bytes it freed (0 if the queue was empty).
-    pub fn drop_lowest(&mut self) -> usize {
+    pub(crate) fn drop_lowest(&mut self) -> usize {
         let before = self.bytes;
         if self.take(true).is_some() {
             self.dropped += 1;
@@ -122,12 +122,12 @@ impl PacketQueue {
 
     /// Counts a packet that was dropped before it reached this queue (the shared
     /// capacity was used up by packets of higher priority).
-    pub fn count_drop(&mut self) {
+    pub(crate) fn count_drop(&mut self) {
         self.dropped += 1;
     }
 
     /// What `packet` counts against a capacity: its length plus `PACKET_OVERHEAD`.
-    pub fn cost_of(packet: &[u8]) -> usize {
+    pub(crate) fn cost_of(packet: &[u8]) -> usize {
         packet.len().saturating_add(PACKET_OVERHEAD)
     }
 
@@ -181,7 +181,7 @@ impl PacketQueue {
 
     /// Changes the capacity (a reload's `queue` block): packets beyond a smaller one
     /// stay queued, and the next push makes room as usual.
-    pub fn set_capacity(&mut self, capacity: usize) {
+    pub(crate) fn set_capacity(&mut self, capacity: usize) {
         self.capacity = capacity;
     }
 
@@ -196,7 +196,7 @@ impl PacketQueue {
     }
 
     /// The most bytes the queue has held at once, since creation.
-    pub fn high_water(&self) -> usize {
+    pub(crate) fn high_water(&self) -> usize {
         self.high_water
     }
 }

@@ -41,12 +41,12 @@ impl Connection {
     }
 
     /// True when open.
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         *self == Connection::Open
     }
 
     /// When an attempt is due and not yet asked for.
-    pub fn retry_at(&self) -> Option<Timestamp> {
+    pub(crate) fn retry_at(&self) -> Option<Timestamp> {
         match *self {
             Connection::Closed {
                 retry_at,
@@ -58,7 +58,7 @@ impl Connection {
     }
 
     /// If an attempt is due at `now`, marks it asked for and returns true.
-    pub fn ask_if_due(&mut self, now: Timestamp) -> bool {
+    pub(crate) fn ask_if_due(&mut self, now: Timestamp) -> bool {
         match self {
             Connection::Closed {
                 retry_at, asked, ..
@@ -72,7 +72,7 @@ impl Connection {
 
     /// The attempt failed at `now`: wait the backoff, then double it up to `cap`.
     /// Returns true if this is the first failure of an outage (the one worth saying).
-    pub fn failed(&mut self, now: Timestamp, cap: Duration) -> bool {
+    pub(crate) fn failed(&mut self, now: Timestamp, cap: Duration) -> bool {
         let backoff = match *self {
             Connection::Closed { backoff, .. } => backoff,
             Connection::Open => FIRST_BACKOFF,
@@ -87,7 +87,7 @@ impl Connection {
 
     /// The device was lost at `now` (it was open): try again after `first_wait`, then
     /// with the backoff (failures after a loss are not said again: the loss was).
-    pub fn lost(&mut self, now: Timestamp, first_wait: Duration) {
+    pub(crate) fn lost(&mut self, now: Timestamp, first_wait: Duration) {
         *self = Connection::Closed {
             retry_at: now + first_wait,
             backoff: FIRST_BACKOFF * 2,

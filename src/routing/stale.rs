@@ -46,7 +46,7 @@ impl StaleTail {
     }
 
     /// The rule for a reliable byte stream (TCP): held-back bytes never go stale.
-    pub fn reliable() -> Self {
+    pub(crate) fn reliable() -> Self {
         StaleTail {
             patience: None,
             last_rx: Timestamp::ZERO,
@@ -55,13 +55,13 @@ impl StaleTail {
 
     /// Notes that bytes arrived at `now`.
     #[inline]
-    pub fn received(&mut self, now: Timestamp) {
+    pub(crate) fn received(&mut self, now: Timestamp) {
         self.last_rx = now;
     }
 
     /// When `pending` held-back bytes become stale (None when nothing is held back, or
     /// on a reliable stream).
-    pub fn deadline(&self, pending: usize) -> Option<Timestamp> {
+    pub(crate) fn deadline(&self, pending: usize) -> Option<Timestamp> {
         let patience = self.patience?;
         (pending > 0).then(|| self.last_rx + patience)
     }

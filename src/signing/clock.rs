@@ -18,14 +18,14 @@ pub const MAX_TIMESTAMP: SigningTime = (1 << 48) - 1;
 
 /// Signature time of a wall-clock reading given as time since the Unix epoch (0 before
 /// 2015).
-pub fn units_from_unix(since_unix_epoch: Duration) -> SigningTime {
+pub(crate) fn units_from_unix(since_unix_epoch: Duration) -> SigningTime {
     let since_2015 = since_unix_epoch.saturating_sub(Duration::from_secs(EPOCH_2015_UNIX_SECS));
     let units = since_2015.as_micros() / 10;
     u64::try_from(units).unwrap_or(u64::MAX).min(MAX_TIMESTAMP)
 }
 
 /// Signature time units in `d`.
-pub fn units_of(d: Duration) -> u64 {
+pub(crate) fn units_of(d: Duration) -> u64 {
     u64::try_from(d.as_micros() / 10).unwrap_or(u64::MAX)
 }
 
@@ -40,18 +40,18 @@ pub struct SigningClock {
 
 impl SigningClock {
     /// Notes that at `now` the wall clock read `units` (signature time).
-    pub fn set_wall(&mut self, now: Timestamp, units: SigningTime) {
+    pub(crate) fn set_wall(&mut self, now: Timestamp, units: SigningTime) {
         self.reading = Some((now, units));
     }
 
     /// Raises the floor to `units` (a timestamp from a previous run).
-    pub fn raise_floor(&mut self, units: SigningTime) {
+    pub(crate) fn raise_floor(&mut self, units: SigningTime) {
         self.floor = self.floor.max(units.min(MAX_TIMESTAMP));
     }
 
     /// Signature time at `now`: the wall clock advanced by core time since it was read,
     /// never below the floor.
-    pub fn now(&self, now: Timestamp) -> SigningTime {
+    pub(crate) fn now(&self, now: Timestamp) -> SigningTime {
         let wall = self.reading.map_or(0, |(at, units)| {
             units.saturating_add(units_of(now.saturating_since(at)))
         });
@@ -60,7 +60,7 @@ impl SigningClock {
 
     /// A timestamp for a signature the router makes at `now`: the clock's time, or one
     /// past the last one issued, whichever is later (strictly increasing).
-    pub fn issue(&mut self, now: Timestamp) -> SigningTime {
+    pub(crate) fn issue(&mut self, now: Timestamp) -> SigningTime {
         let t = self
             .now(now)
             .max(self.floor.saturating_add(1))
@@ -70,7 +70,7 @@ impl SigningClock {
     }
 
     /// The floor to save: no timestamp issued so far is above it.
-    pub fn floor(&self) -> SigningTime {
+    pub(crate) fn floor(&self) -> SigningTime {
         self.floor
     }
 }

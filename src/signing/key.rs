@@ -187,7 +187,7 @@ impl KeyError {
     }
 
     /// What is wrong, in one line.
-    pub fn summary(&self) -> String {
+    pub(crate) fn summary(&self) -> String {
         let file = match &self.path {
             Some(p) => format!("key file {}", p.display()),
             None => "key file".to_string(),
@@ -205,7 +205,7 @@ impl KeyError {
     }
 
     /// What to do about it, when there is something to say.
-    pub fn hint(&self) -> Option<String> {
+    pub(crate) fn hint(&self) -> Option<String> {
         let path = self
             .path
             .as_ref()

@@ -132,13 +132,13 @@ impl<'a> Frame<'a> {
 
     /// Incompatibility flags (always 0 for v1).
     #[inline]
-    pub fn incompat_flags(&self) -> u8 {
+    pub(crate) fn incompat_flags(&self) -> u8 {
         self.layout().read_incompat_flags(self.bytes)
     }
 
     /// Compatibility flags (always 0 for v1).
     #[inline]
-    pub fn compat_flags(&self) -> u8 {
+    pub(crate) fn compat_flags(&self) -> u8 {
         self.layout().read_compat_flags(self.bytes)
     }
 
@@ -273,7 +273,7 @@ impl<'a> Signature<'a> {
     }
 
     /// The 6-byte signature value (first 6 bytes of the SHA-256 digest).
-    pub fn value(&self) -> &'a [u8] {
+    pub(crate) fn value(&self) -> &'a [u8] {
         &self.block[7..13]
     }
 }

@@ -155,7 +155,7 @@ pub enum Version {
 impl Version {
     /// The version a frame starting with `byte` has, if `byte` is a magic byte.
     #[inline]
-    pub const fn from_magic(byte: u8) -> Option<Version> {
+    pub(crate) const fn from_magic(byte: u8) -> Option<Version> {
         match byte {
             MAGIC_V1 => Some(Version::V1),
             MAGIC_V2 => Some(Version::V2),
@@ -165,7 +165,7 @@ impl Version {
 
     /// Where this version's header fields sit.
     #[inline]
-    pub const fn layout(self) -> &'static Layout {
+    pub(crate) const fn layout(self) -> &'static Layout {
         match self {
             Version::V1 => &V1,
             Version::V2 => &V2,
@@ -178,12 +178,12 @@ impl Version {
     }
 
     /// Header length (magic byte included) of this version.
-    pub const fn header_len(self) -> usize {
+    pub(crate) const fn header_len(self) -> usize {
         self.layout().header_len
     }
 
     /// The major version number: 1 or 2 (as in the log text's `(v2.0)`).
-    pub const fn number(self) -> u8 {
+    pub(crate) const fn number(self) -> u8 {
         match self {
             Version::V1 => 1,
             Version::V2 => 2,

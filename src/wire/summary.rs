@@ -27,7 +27,7 @@ pub struct PacketSummary {
 impl PacketSummary {
     /// The summary of `frame`.
     #[inline]
-    pub fn of(frame: &Frame<'_>) -> Self {
+    pub(crate) fn of(frame: &Frame<'_>) -> Self {
         PacketSummary {
             name: frame.name(),
             message_id: frame.message_id(),
