@@ -19,7 +19,7 @@ use mavtables::config;
 use mavtables::routing::{Engine, InterfaceId, RouterOptions, Timestamp};
 use mavtables::signing::SigningKey;
 use mavtables::signing::clock::UNITS_PER_SEC;
-use mavtables::wire::encode::{Header, Signing, encode_v2};
+use mavtables::wire::encode::{Header, SignWith, encode_v2};
 use mavtables::wire::signing::compute_signature;
 
 const ROUNDS: usize = 31;
@@ -56,7 +56,7 @@ fn frame(id: u32, len: usize, seq: u8, timestamp: Option<u64>) -> Vec<u8> {
         system: 1,
         component: 1,
     };
-    let signing = timestamp.map(|timestamp| Signing {
+    let signing = timestamp.map(|timestamp| SignWith {
         key: &KEY,
         link_id: 0,
         timestamp,

@@ -18,12 +18,12 @@ impl Address {
     }
 
     /// The address as one 16-bit number, system in the high byte (used by subnet masks).
-    pub const fn to_u16(self) -> u16 {
+    pub(crate) const fn to_u16(self) -> u16 {
         ((self.system as u16) << 8) | self.component as u16
     }
 
     /// Inverse of [`Address::to_u16`].
-    pub const fn from_u16(v: u16) -> Self {
+    pub(crate) const fn from_u16(v: u16) -> Self {
         Address::new((v >> 8) as u8, v as u8)
     }
 }

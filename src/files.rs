@@ -109,7 +109,7 @@ impl fmt::Display for FileError {
 impl std::error::Error for FileError {}
 
 /// `bytes` in the largest binary unit that divides it (`4 KiB`, `16 MiB`).
-pub fn size_text(bytes: u64) -> String {
+pub(crate) fn size_text(bytes: u64) -> String {
     for (unit, size) in [("GiB", 1u64 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)] {
         if bytes >= size && bytes.is_multiple_of(size) {
             return format!("{} {unit}", bytes / size);
@@ -120,7 +120,7 @@ pub fn size_text(bytes: u64) -> String {
 
 /// A regular file opened for reading, with what `fstat` said of the open handle.
 #[derive(Debug)]
-pub struct RegularFile {
+pub(crate) struct RegularFile {
     file: File,
     metadata: Metadata,
 }
@@ -128,7 +128,7 @@ pub struct RegularFile {
 impl RegularFile {
     /// Opens the regular file at `path` (symlinks followed); anything else is refused
     /// without being read, and devices without being opened.
-    pub fn open(path: &Path) -> Result<RegularFile, FileError> {
+    pub(crate) fn open(path: &Path) -> Result<RegularFile, FileError> {
         let seen = std::fs::metadata(path).map_err(|e| FileError::from_io(&e))?;
         if !seen.is_file() {
             return Err(FileError::NotRegular(FileKind::of(seen.file_type())));
@@ -146,12 +146,12 @@ impl RegularFile {
     }
 
     /// What `fstat` said of the opened file (its mode, owner and size).
-    pub fn metadata(&self) -> &Metadata {
+    pub(crate) fn metadata(&self) -> &Metadata {
         &self.metadata
     }
 
     /// The whole file, if it holds at most `limit` bytes (also when it grows while read).
-    pub fn read_all(self, limit: u64) -> Result<Vec<u8>, FileError> {
+    pub(crate) fn read_all(self, limit: u64) -> Result<Vec<u8>, FileError> {
         let too_large = FileError::TooLarge { limit };
         if self.metadata.len() > limit {
             return Err(too_large);
@@ -171,7 +171,7 @@ impl RegularFile {
 
 /// The whole regular file at `path`, if it holds at most `limit` bytes (see
 /// [`RegularFile::open`] for what is refused).
-pub fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError> {
+pub(crate) fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError> {
     RegularFile::open(path)?.read_all(limit)
 }
 

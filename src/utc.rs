@@ -15,14 +15,14 @@ fn civil_from_days(days: i64) -> (i64, u32, u32) {
 }
 
 /// (year, month, day, hour, minute, second) in UTC of a UNIX time in seconds.
-pub fn calendar(unix_seconds: i64) -> (i64, u32, u32, u32, u32, u32) {
+pub(crate) fn calendar(unix_seconds: i64) -> (i64, u32, u32, u32, u32, u32) {
     let (y, m, d) = civil_from_days(unix_seconds.div_euclid(86_400));
     let sod = unix_seconds.rem_euclid(86_400) as u32;
     (y, m, d, sod / 3600, sod / 60 % 60, sod % 60)
 }
 
 /// `YYYY-MM-DD HH:MM:SS.uuuuuu` (UTC) for microseconds since the UNIX epoch.
-pub fn format_micros(us: u64) -> String {
+pub(crate) fn format_micros(us: u64) -> String {
     let secs = (us / 1_000_000) as i64;
     let (y, m, d) = civil_from_days(secs.div_euclid(86_400));
     let sod = secs.rem_euclid(86_400);

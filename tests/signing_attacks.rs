@@ -403,7 +403,7 @@ fn replay_after_a_crash_is_refused() {
     rig.send(&v);
     rig.expect_exactly(std::slice::from_ref(&v));
     // The next save has the stream.
-    common::net::wait_until("the signing state saved", Duration::from_secs(5), || {
+    common::eventually("the signing state saved", Duration::from_secs(5), || {
         std::fs::read(&state)
             .ok()
             .is_some_and(|now| Some(&now) != initial.as_ref())

@@ -48,7 +48,7 @@ impl Subnet {
 
     /// The `S.C\bits` form: the system is ignored and the leftmost `bits` (0..=8) of the
     /// component must match. `None` when `bits` is above 8.
-    pub const fn with_component_prefix(address: Address, bits: u8) -> Option<Self> {
+    pub(crate) const fn with_component_prefix(address: Address, bits: u8) -> Option<Self> {
         if bits > 8 {
             return None;
         }
@@ -62,7 +62,7 @@ impl Subnet {
 
     /// Whether `address` lies in this subnet.
     #[inline]
-    pub const fn contains(&self, address: Address) -> bool {
+    pub(crate) const fn contains(&self, address: Address) -> bool {
         address.to_u16() & self.mask == self.address.to_u16() & self.mask
     }
 }
@@ -81,7 +81,7 @@ pub enum PrefixMask {
 
 impl PrefixMask {
     /// The largest bit count this form allows.
-    pub const fn max_bits(self) -> u8 {
+    pub(crate) const fn max_bits(self) -> u8 {
         match self {
             PrefixMask::Slash => 16,
             PrefixMask::Backslash => 8,
@@ -91,7 +91,7 @@ impl PrefixMask {
     /// The bit count written after the `/` or `\` (decimal digits only), or the error
     /// text to show for it, e.g. `Forward slash mask (17) is outside of allowed range
     /// (0 - 16).` (the original mavtables' wording).
-    pub fn bits(self, text: &str) -> Result<u8, String> {
+    pub(crate) fn bits(self, text: &str) -> Result<u8, String> {
         let max = self.max_bits();
         match text.parse::<u8>() {
             Ok(n) if n <= max && text.bytes().all(|b| b.is_ascii_digit()) => Ok(n),
@@ -109,7 +109,7 @@ impl PrefixMask {
 
     /// The subnet of `address` under `bits` of this form; `None` when `bits` is above
     /// [`PrefixMask::max_bits`].
-    pub const fn subnet(self, address: Address, bits: u8) -> Option<Subnet> {
+    pub(crate) const fn subnet(self, address: Address, bits: u8) -> Option<Subnet> {
         match self {
             PrefixMask::Slash => Subnet::with_prefix(address, bits),
             PrefixMask::Backslash => Subnet::with_component_prefix(address, bits),

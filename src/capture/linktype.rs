@@ -2,20 +2,20 @@
 //! VLAN tags), Linux cooked v1/v2, BSD loopback (DLT_NULL) and raw IPv4.
 
 /// `DLT_NULL`: BSD loopback, a 4-byte address family in host order.
-pub const DLT_NULL: u32 = 0;
+pub(crate) const DLT_NULL: u32 = 0;
 /// `DLT_EN10MB`: Ethernet.
-pub const DLT_EN10MB: u32 = 1;
+pub(crate) const DLT_EN10MB: u32 = 1;
 /// `DLT_RAW`: raw IP.
-pub const DLT_RAW: u32 = 101;
+pub(crate) const DLT_RAW: u32 = 101;
 /// `DLT_LINUX_SLL`: Linux cooked capture v1.
-pub const DLT_LINUX_SLL: u32 = 113;
+pub(crate) const DLT_LINUX_SLL: u32 = 113;
 /// `DLT_IPV4`: raw IPv4.
-pub const DLT_IPV4: u32 = 228;
+pub(crate) const DLT_IPV4: u32 = 228;
 /// `DLT_LINUX_SLL2`: Linux cooked capture v2 (`tshark -i any`).
-pub const DLT_LINUX_SLL2: u32 = 276;
+pub(crate) const DLT_LINUX_SLL2: u32 = 276;
 
 /// True for the link types [`udp_payload`] understands.
-pub fn supported(link_type: u32) -> bool {
+pub(crate) fn supported(link_type: u32) -> bool {
     matches!(
         link_type,
         DLT_NULL | DLT_EN10MB | DLT_RAW | DLT_LINUX_SLL | DLT_IPV4 | DLT_LINUX_SLL2
@@ -24,7 +24,7 @@ pub fn supported(link_type: u32) -> bool {
 
 /// A UDP datagram found inside a captured frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Udp<'a> {
+pub(crate) struct Udp<'a> {
     /// Source IPv4 address and port.
     pub source: ([u8; 4], u16),
     /// Destination IPv4 address and port.
@@ -63,7 +63,7 @@ fn ipv4_start(link_type: u32, frame: &[u8]) -> Option<usize> {
 }
 
 /// The UDP datagram carried by `frame`, if it is an unfragmented IPv4/UDP packet.
-pub fn udp_payload(link_type: u32, frame: &[u8]) -> Option<Udp<'_>> {
+pub(crate) fn udp_payload(link_type: u32, frame: &[u8]) -> Option<Udp<'_>> {
     let ip_at = ipv4_start(link_type, frame)?;
     let ip = frame.get(ip_at..)?;
     let first = *ip.first()?;

@@ -9,7 +9,7 @@
 //! [`pcap::Reader`] and [`pcapng::Reader`] walk a capture already in memory with the
 //! same answers.
 
-pub mod linktype;
+pub(crate) mod linktype;
 pub mod pcap;
 pub mod pcapng;
 pub mod records;
@@ -54,7 +54,7 @@ impl fmt::Display for Format {
 const TLOG_EPOCH_RANGE: std::ops::Range<u64> = 946_684_800_000_000..4_102_444_800_000_000;
 
 /// Tells the format of a capture from its first bytes (it looks at nine at most).
-pub fn detect(data: &[u8]) -> Format {
+pub(crate) fn detect(data: &[u8]) -> Format {
     if pcap::is_pcap(data) {
         return Format::Pcap;
     }

@@ -1,5 +1,5 @@
 //! Classic libpcap files (`.pcap`): the UDP payloads they carry (link types as in
-//! [`super::linktype`]). Non-UDP packets are passed over and counted.
+//! `super::linktype`). Non-UDP packets are passed over and counted.
 
 use super::records::{self, RecordFormat};
 use super::{Unit, linktype};
@@ -25,7 +25,7 @@ pub struct Datagram<'a> {
 
 impl<'a> Datagram<'a> {
     /// The datagram as a unit of MAVLink bytes.
-    pub fn unit(self) -> Unit<'a> {
+    pub(crate) fn unit(self) -> Unit<'a> {
         Unit {
             timestamp_us: Some(self.timestamp_us),
             offset: self.offset,
@@ -57,7 +57,7 @@ impl std::fmt::Display for PcapError {
 }
 
 /// True if `data` starts like a classic pcap file.
-pub fn is_pcap(data: &[u8]) -> bool {
+pub(crate) fn is_pcap(data: &[u8]) -> bool {
     matches!(
         data.get(..4),
         Some(
@@ -81,7 +81,7 @@ pub struct Pcap {
 
 impl Pcap {
     /// Reads the file header (the first [`GLOBAL_HEADER_LEN`] bytes of `data`).
-    pub fn from_header(data: &[u8]) -> Result<Self, PcapError> {
+    pub(crate) fn from_header(data: &[u8]) -> Result<Self, PcapError> {
         if data.len() < GLOBAL_HEADER_LEN || !is_pcap(data) {
             return Err(PcapError::NotPcap);
         }

@@ -1,5 +1,5 @@
 //! pcapng files (Wireshark's default format): the UDP payloads of their Enhanced and
-//! Simple Packet Blocks (link types as in [`super::linktype`]). Other blocks, other
+//! Simple Packet Blocks (link types as in `super::linktype`). Other blocks, other
 //! protocols and interfaces of unknown link types are passed over and counted.
 
 use super::pcap::{Datagram, PcapError};
@@ -16,7 +16,7 @@ const OPT_IF_TSRESOL: u16 = 9;
 pub const FILE_HEADER_LEN: usize = 12;
 
 /// True if `data` starts like a pcapng file.
-pub fn is_pcapng(data: &[u8]) -> bool {
+pub(crate) fn is_pcapng(data: &[u8]) -> bool {
     data.get(..4) == Some(&SHB.to_le_bytes())
 }
 
@@ -68,7 +68,7 @@ impl<'a> Block<'a> {
 impl PcapNg {
     /// Checks the start of the first Section Header Block (the first
     /// [`FILE_HEADER_LEN`] bytes of `data`); reading starts with that block.
-    pub fn from_header(data: &[u8]) -> Result<Self, PcapError> {
+    pub(crate) fn from_header(data: &[u8]) -> Result<Self, PcapError> {
         if data.len() < FILE_HEADER_LEN || !is_pcapng(data) {
             return Err(PcapError::NotPcap);
         }

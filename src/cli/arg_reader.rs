@@ -6,7 +6,7 @@
 
 /// One long option a command understands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct OptionSpec {
+pub(crate) struct OptionSpec {
     /// The name without its leading `--`.
     pub name: &'static str,
     /// Whether a value follows it (`--config PATH`) or not (`--ast`).
@@ -15,7 +15,7 @@ pub struct OptionSpec {
 
 impl OptionSpec {
     /// An option without a value (a flag).
-    pub const fn flag(name: &'static str) -> Self {
+    pub(crate) const fn flag(name: &'static str) -> Self {
         OptionSpec {
             name,
             takes_value: false,
@@ -23,7 +23,7 @@ impl OptionSpec {
     }
 
     /// An option followed by a value.
-    pub const fn value(name: &'static str) -> Self {
+    pub(crate) const fn value(name: &'static str) -> Self {
         OptionSpec {
             name,
             takes_value: true,
@@ -32,11 +32,11 @@ impl OptionSpec {
 }
 
 /// The option that `-h` stands for.
-pub const HELP: &str = "help";
+pub(crate) const HELP: &str = "help";
 
 /// One thing read from a command line.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Arg {
+pub(crate) enum Arg {
     /// An option by its full name, with its value when it takes one.
     Option {
         /// The full name, without `--`, whatever prefix was written.
@@ -54,7 +54,7 @@ pub enum Arg {
 /// a match, so options added to a command later never make an abbreviation that worked
 /// before ambiguous.
 #[derive(Debug)]
-pub struct ArgReader<I> {
+pub(crate) struct ArgReader<I> {
     args: I,
     tiers: &'static [&'static [OptionSpec]],
     only_positional: bool,
@@ -62,7 +62,7 @@ pub struct ArgReader<I> {
 
 impl<I: Iterator<Item = String>> ArgReader<I> {
     /// A reader over `args` (without the program or subcommand name).
-    pub fn new(
+    pub(crate) fn new(
         args: impl IntoIterator<IntoIter = I>,
         tiers: &'static [&'static [OptionSpec]],
     ) -> Self {
@@ -74,7 +74,7 @@ impl<I: Iterator<Item = String>> ArgReader<I> {
     }
 
     /// The next argument, `None` at the end, or the error text for a wrong option.
-    pub fn next_arg(&mut self) -> Result<Option<Arg>, String> {
+    pub(crate) fn next_arg(&mut self) -> Result<Option<Arg>, String> {
         let Some(arg) = self.args.next() else {
             return Ok(None);
         };

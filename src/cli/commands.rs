@@ -69,7 +69,7 @@ pub fn run_subcommand(
     let result = match name.as_str() {
         "inspect" => run_inspect(rest, out, err),
         "replay" => run_replay(rest, out, err),
-        "stats" => super::stats::run_stats(rest, out, err),
+        "stats" => super::stats_args::run_stats(rest, out, err),
         _ => return None,
     };
     Some(match result {

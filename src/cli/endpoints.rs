@@ -87,7 +87,7 @@ pub fn parse(arg: &str) -> Result<Option<Endpoint>, String> {
 
 /// The configuration `endpoints` stand for: their interfaces in the order given, every
 /// packet accepted. Two endpoints claiming one local socket or device are refused.
-pub fn config(endpoints: &[Endpoint]) -> Result<Config, String> {
+pub(crate) fn config(endpoints: &[Endpoint]) -> Result<Config, String> {
     let mut claimed: Vec<(Claim, &str)> = Vec::new();
     for e in endpoints {
         let Some(claim) = Claim::of(&e.interface) else {

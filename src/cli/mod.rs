@@ -1,15 +1,16 @@
-//! Command-line interface of the `mavtables` binary: options (one reader, [`arg_reader`],
+//! Command-line interface of the `mavtables` binary: options (one reader, `arg_reader`,
 //! for the main command and its subcommands), finding and loading the configuration or
 //! building one from [`endpoints`], `--ast`, `--check`, and dispatching to the `inspect`
 //! and `replay` subcommands and to `stats`.
 
-pub mod arg_reader;
+pub(crate) mod arg_reader;
 mod args;
 mod commands;
+#[doc(hidden)]
 pub mod endpoints;
 mod run;
 mod search;
-mod stats;
+mod stats_args;
 mod text;
 
 pub use args::{Options, parse};

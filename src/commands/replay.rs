@@ -267,7 +267,7 @@ pub struct Summary {
 /// Sends the frames of the capture read from `input` that `dialect` knows to `target`
 /// at `speed`, as they are read, calling `progress(sent)` after each frame. Returns what was sent, and
 /// what stopped the replay short, if anything.
-pub fn replay(
+pub(crate) fn replay(
     input: impl Read,
     target: &Target,
     speed: Speed,
@@ -323,7 +323,7 @@ impl<W: Write> ProgressBar<W> {
     }
 
     /// Redraws the bar for `done` of `total` (always on the last one).
-    pub fn update(&mut self, done: u64, total: u64) {
+    pub(crate) fn update(&mut self, done: u64, total: u64) {
         if done < total && self.too_soon() {
             return;
         }
@@ -346,7 +346,7 @@ impl<W: Write> ProgressBar<W> {
 
     /// Redraws the count of `done` frames of a capture whose length is not known (one
     /// read from standard input).
-    pub fn update_count(&mut self, done: u64) {
+    pub(crate) fn update_count(&mut self, done: u64) {
         if self.too_soon() {
             return;
         }
@@ -359,7 +359,7 @@ impl<W: Write> ProgressBar<W> {
     }
 
     /// Ends the line of a count drawn with [`ProgressBar::update_count`].
-    pub fn finish_count(&mut self, done: u64) {
+    pub(crate) fn finish_count(&mut self, done: u64) {
         self.last = None;
         self.update_count(done);
         let _ = writeln!(self.out);

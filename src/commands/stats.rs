@@ -2,9 +2,9 @@
 //! its chains, rules and links like `iptables -L -v`; `--watch` redraws it every second.
 //! Its command line is read in [`crate::cli`].
 
-pub mod http;
-pub mod render;
-pub mod table;
+pub(crate) mod http;
+pub(crate) mod render;
+pub(crate) mod table;
 
 use std::io::Write;
 use std::net::IpAddr;
@@ -48,7 +48,7 @@ impl Endpoint {
     }
 
     /// The endpoint of `--url http://HOST:PORT[/PREFIX]`: `/stats` under the prefix.
-    pub fn from_url(url: &str) -> Result<Self, String> {
+    pub(crate) fn from_url(url: &str) -> Result<Self, String> {
         let bad = |why: &str| {
             format!("--url '{url}': {why}; write http://HOST:PORT, e.g. http://127.0.0.1:9100")
         };
@@ -78,7 +78,7 @@ impl Endpoint {
     }
 
     /// The URL of the statistics, as shown in the output.
-    pub fn url(&self) -> String {
+    pub(crate) fn url(&self) -> String {
         format!("http://{}{}", self.authority, self.path)
     }
 }
@@ -99,7 +99,7 @@ pub fn fetch(endpoint: &Endpoint) -> Result<Value, String> {
 }
 
 /// Prints the statistics once.
-pub fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), String> {
+pub(crate) fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), String> {
     let stats = fetch(endpoint)?;
     out.write_all(render::render(&stats, &endpoint.url()).as_bytes())
         .and_then(|()| out.flush())
@@ -110,7 +110,7 @@ pub fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), String> {
 /// each picture replaces the last, as `top` does, on the alternate screen, which is left
 /// on exit; otherwise pictures follow each other plainly, separated by a blank line.
 /// A router that does not answer is shown as such and asked again a second later.
-pub fn watch(
+pub(crate) fn watch(
     endpoint: &Endpoint,
     out: &mut dyn Write,
     terminal: bool,

@@ -15,7 +15,7 @@ pub struct Ast<'a> {
 
 impl<'a> Ast<'a> {
     /// The source text of `span`.
-    pub fn text(&self, span: Span) -> &'a str {
+    pub(crate) fn text(&self, span: Span) -> &'a str {
         self.src.get(span.start..span.end).unwrap_or("")
     }
 }

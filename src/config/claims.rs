@@ -8,7 +8,7 @@ use std::net::{IpAddr, SocketAddr};
 
 /// A local resource only one interface can hold.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Claim {
+pub(crate) enum Claim {
     /// A UDP port on a local address.
     Udp(SocketAddr),
     /// A TCP listening port on a local address.
@@ -20,7 +20,7 @@ pub enum Claim {
 impl Claim {
     /// What `iface` claims: its bound socket (none for port 0, any free port, nor for a
     /// TCP client, which binds no chosen port), or its device.
-    pub fn of(iface: &Interface) -> Option<Claim> {
+    pub(crate) fn of(iface: &Interface) -> Option<Claim> {
         match iface {
             Interface::Udp(u) if u.port != 0 => {
                 Some(Claim::Udp(SocketAddr::new(u.local_address(), u.port)))
@@ -36,7 +36,7 @@ impl Claim {
     /// Whether `self` and `other` cannot both be held: the same device, or sockets of one
     /// protocol on one port whose addresses overlap (equal, or one is every address of its
     /// family; `::` also covers IPv4, as a dual-stack socket does). UDP and TCP never clash.
-    pub fn clashes(&self, other: &Claim) -> bool {
+    pub(crate) fn clashes(&self, other: &Claim) -> bool {
         match (self, other) {
             (Claim::Udp(a), Claim::Udp(b)) | (Claim::Tcp(a), Claim::Tcp(b)) => {
                 a.port() == b.port() && overlap(a.ip(), b.ip())
@@ -47,7 +47,7 @@ impl Claim {
     }
 
     /// `udp`, `tcp` or `serial`: the kind of block that makes this claim.
-    pub fn kind(&self) -> &'static str {
+    pub(crate) fn kind(&self) -> &'static str {
         match self {
             Claim::Udp(_) => "udp",
             Claim::Tcp(_) => "tcp",

@@ -27,14 +27,14 @@ impl Diagnostic {
     }
 
     /// Adds a note line.
-    pub fn with_note(mut self, note: impl Into<String>) -> Self {
+    pub(crate) fn with_note(mut self, note: impl Into<String>) -> Self {
         self.notes.push(note.into());
         self
     }
 
     /// Renders the diagnostic against the source it was found in. A line longer than
-    /// [`SHOWN_CHARS`] is shown as a window around the position (`…` where it was cut),
-    /// and a message or note longer than [`TEXT_CHARS`] is cut too, so a pathological
+    /// `SHOWN_CHARS` is shown as a window around the position (`…` where it was cut),
+    /// and a message or note longer than `TEXT_CHARS` is cut too, so a pathological
     /// file gets a short error.
     pub fn render(&self, file: &str, src: &str) -> String {
         let pos = Position::of(src, self.span.start);
@@ -75,10 +75,10 @@ impl Diagnostic {
 }
 
 /// Longest source line shown whole, in characters.
-pub const SHOWN_CHARS: usize = 160;
+pub(crate) const SHOWN_CHARS: usize = 160;
 
 /// Longest message or note shown whole, in characters: room for a few long paths.
-pub const TEXT_CHARS: usize = 1024;
+pub(crate) const TEXT_CHARS: usize = 1024;
 
 /// Characters of a long line shown before the position.
 const SHOWN_BEFORE: usize = 60;
@@ -145,13 +145,13 @@ pub struct Position {
 impl Position {
     /// The position of byte `offset` in `src` (clamped to the end, moved back to a character
     /// boundary if needed).
-    pub fn of(src: &str, offset: usize) -> Position {
+    pub(crate) fn of(src: &str, offset: usize) -> Position {
         Position::in_index(&LineIndex::new(src), src, offset)
     }
 
     /// Like [`Position::of`], with the line starts of `src` already indexed (for many
     /// lookups in one source).
-    pub fn in_index(lines: &LineIndex, src: &str, offset: usize) -> Position {
+    pub(crate) fn in_index(lines: &LineIndex, src: &str, offset: usize) -> Position {
         let mut offset = offset.min(src.len());
         while !src.is_char_boundary(offset) {
             offset -= 1;
@@ -167,7 +167,7 @@ impl Position {
     }
 
     /// The text of the line holding this position, without its line ending.
-    pub fn line_text<'a>(&self, src: &'a str) -> &'a str {
+    pub(crate) fn line_text<'a>(&self, src: &'a str) -> &'a str {
         let rest = &src[self.line_start..];
         let line = rest.split('\n').next().unwrap_or("");
         line.strip_suffix('\r').unwrap_or(line)

@@ -7,7 +7,7 @@
 use super::Span;
 
 /// True for the characters that make up words (keywords, names, numbers).
-pub fn is_word_char(c: char) -> bool {
+pub(crate) fn is_word_char(c: char) -> bool {
     c.is_ascii_alphanumeric() || c == '_'
 }
 
@@ -18,7 +18,7 @@ fn is_space(c: char) -> bool {
 
 /// A position in the source plus the end of the last token read.
 #[derive(Debug, Clone)]
-pub struct Cursor<'a> {
+pub(crate) struct Cursor<'a> {
     src: &'a str,
     pos: usize,
     prev_end: usize,
@@ -26,7 +26,7 @@ pub struct Cursor<'a> {
 
 impl<'a> Cursor<'a> {
     /// A cursor at the start of `src`.
-    pub fn new(src: &'a str) -> Self {
+    pub(crate) fn new(src: &'a str) -> Self {
         Cursor {
             src,
             pos: 0,
@@ -35,27 +35,27 @@ impl<'a> Cursor<'a> {
     }
 
     /// Byte offset of the cursor.
-    pub fn pos(&self) -> usize {
+    pub(crate) fn pos(&self) -> usize {
         self.pos
     }
 
     /// The source text of `span`.
-    pub fn text(&self, span: Span) -> &'a str {
+    pub(crate) fn text(&self, span: Span) -> &'a str {
         self.src.get(span.start..span.end).unwrap_or("")
     }
 
     /// The next character, if any.
-    pub fn peek(&self) -> Option<char> {
+    pub(crate) fn peek(&self) -> Option<char> {
         self.src[self.pos..].chars().next()
     }
 
     /// True at the end of the input.
-    pub fn at_end(&self) -> bool {
+    pub(crate) fn at_end(&self) -> bool {
         self.pos >= self.src.len()
     }
 
     /// Skips whitespace and comments.
-    pub fn skip_padding(&mut self) {
+    pub(crate) fn skip_padding(&mut self) {
         while let Some(c) = self.peek() {
             if is_space(c) {
                 self.pos += c.len_utf8();
@@ -71,7 +71,7 @@ impl<'a> Cursor<'a> {
     /// Skips padding, then gives the place to report "expected X" at: the next token when
     /// it is on the same line as the previous token, otherwise just after the previous
     /// token (so a missing `;` is shown where it belongs, not on the next line).
-    pub fn expected_at(&mut self) -> Span {
+    pub(crate) fn expected_at(&mut self) -> Span {
         self.skip_padding();
         let between = &self.src[self.prev_end.min(self.pos)..self.pos];
         if self.at_end() || between.contains('\n') {
@@ -82,7 +82,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Span of the next character (empty at the end of the input).
-    pub fn char_span(&self) -> Span {
+    pub(crate) fn char_span(&self) -> Span {
         Span::new(self.pos, self.pos + self.char_len())
     }
 
@@ -91,7 +91,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Consumes `c` if it is the next character.
-    pub fn eat(&mut self, c: char) -> bool {
+    pub(crate) fn eat(&mut self, c: char) -> bool {
         if self.peek() == Some(c) {
             self.pos += c.len_utf8();
             self.prev_end = self.pos;
@@ -102,7 +102,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Consumes characters while `pred` holds and returns their span (possibly empty).
-    pub fn take_while(&mut self, pred: impl Fn(char) -> bool) -> Span {
+    pub(crate) fn take_while(&mut self, pred: impl Fn(char) -> bool) -> Span {
         let start = self.pos;
         while let Some(c) = self.peek() {
             if !pred(c) {
@@ -117,7 +117,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// The word (run of letters, digits and `_`) at the cursor, without consuming it.
-    pub fn peek_word(&self) -> Option<(Span, &'a str)> {
+    pub(crate) fn peek_word(&self) -> Option<(Span, &'a str)> {
         let rest = &self.src[self.pos..];
         let len = rest.find(|c: char| !is_word_char(c)).unwrap_or(rest.len());
         (len > 0).then(|| (Span::new(self.pos, self.pos + len), &rest[..len]))
@@ -125,7 +125,7 @@ impl<'a> Cursor<'a> {
 
     /// Consumes the word at the cursor if it equals `keyword` (words are whole: `acceptif`
     /// is not `accept`).
-    pub fn eat_keyword(&mut self, keyword: &str) -> Option<Span> {
+    pub(crate) fn eat_keyword(&mut self, keyword: &str) -> Option<Span> {
         match self.peek_word() {
             Some((span, w)) if w == keyword => {
                 self.pos = span.end;
@@ -137,7 +137,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Consumes and returns the word at the cursor, if any.
-    pub fn word(&mut self) -> Option<(Span, &'a str)> {
+    pub(crate) fn word(&mut self) -> Option<(Span, &'a str)> {
         let found = self.peek_word();
         if let Some((span, _)) = found {
             self.pos = span.end;
@@ -147,7 +147,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Consumes a run of ASCII digits (possibly empty).
-    pub fn digits(&mut self) -> Span {
+    pub(crate) fn digits(&mut self) -> Span {
         self.take_while(|c| c.is_ascii_digit())
     }
 }

@@ -17,7 +17,7 @@ impl LineIndex {
     }
 
     /// The 1-based line holding byte `offset` (offsets past the end are on the last line).
-    pub fn line_of(&self, offset: usize) -> usize {
+    pub(crate) fn line_of(&self, offset: usize) -> usize {
         match self.starts.binary_search(&offset) {
             Ok(i) => i + 1,
             Err(i) => i,
@@ -26,7 +26,7 @@ impl LineIndex {
 
     /// The byte offset where 1-based `line` starts (line 0 and lines past the end are
     /// clamped to the first and last line).
-    pub fn line_start(&self, line: usize) -> usize {
+    pub(crate) fn line_start(&self, line: usize) -> usize {
         let i = line.clamp(1, self.starts.len()) - 1;
         self.starts[i]
     }

@@ -1,35 +1,40 @@
 //! The configuration language: lexer, parser, `--ast` printer, located diagnostics and
 //! the semantic model the router runs from.
 //!
-//! [`parse`] checks syntax only and gives the [`ast::Ast`] (what `--ast` prints);
+//! [`parse`] checks syntax only and gives the `ast::Ast` (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
 //! signing keys it names, [`check_signing_state`] checks its signing state file, and
 //! [`check_record_path`] looks at the file a `record` path without `%` fields names.
 //! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
-pub mod ast;
-pub mod claims;
-pub mod diagnostic;
-pub mod file;
-pub mod keys;
-pub mod lexer;
-pub mod lines;
-pub mod model;
-pub mod net;
-pub mod parser;
-pub mod printer;
-pub mod record_path;
-pub mod recording;
-pub mod semantics;
-pub mod sockets;
-pub mod stats;
-pub mod suggest;
+pub(crate) mod ast;
+pub(crate) mod claims;
+pub(crate) mod diagnostic;
+pub(crate) mod file;
+pub(crate) mod keys;
+pub(crate) mod lexer;
+pub(crate) mod lines;
+pub(crate) mod model;
+pub(crate) mod net;
+pub(crate) mod parser;
+pub(crate) mod printer;
+pub(crate) mod record_path;
+pub(crate) mod recording;
+pub(crate) mod semantics;
+pub(crate) mod sockets;
+pub(crate) mod stats_block;
+pub(crate) mod suggest;
+mod values;
 
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};
 pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
-pub use model::*;
+pub use model::{
+    Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
+    DefaultAction, Host, Interface, InterfaceSigning, IpRange, PeerLimits, QueueBounds, Recording,
+    Remote, Rule, SIGNING_STATE_FILE, SerialInterface, StatsEndpoint, TcpInterface, UdpInterface,
+};
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
 pub use record_path::check_record_path;
@@ -45,7 +50,7 @@ pub const CONFIG_FILE_LIMIT: u64 = 16 << 20;
 
 /// The text of the configuration file at `path`, which must be a regular file (after
 /// following symlinks) of at most [`CONFIG_FILE_LIMIT`] bytes; see
-/// [`crate::files::read_regular`]. Bytes that are not UTF-8 become U+FFFD, which the
+/// `crate::files::read_regular`. Bytes that are not UTF-8 become U+FFFD, which the
 /// lexer reports where they are.
 pub fn read_source(path: &Path) -> Result<String, FileError> {
     let bytes = read_regular(path, CONFIG_FILE_LIMIT)?;
@@ -68,7 +73,7 @@ impl Span {
     }
 
     /// True when the range holds no bytes.
-    pub const fn is_empty(&self) -> bool {
+    pub(crate) const fn is_empty(&self) -> bool {
         self.end <= self.start
     }
 }

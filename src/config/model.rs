@@ -1,6 +1,7 @@
 //! The meaning of a configuration: typed, validated values the router runs from.
 
-use crate::address::{Address, Subnet};
+use crate::address::Address;
+pub use crate::condition::Condition;
 use crate::dialect::Dialect;
 use crate::wire::Checks;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
@@ -51,7 +52,7 @@ impl Config {
     /// A configuration of `interfaces` only: every packet is accepted (`default_action
     /// accept`, an empty `default` chain) and the queues keep their default bounds. What
     /// command-line endpoints run.
-    pub fn accept_all(interfaces: Vec<Interface>) -> Self {
+    pub(crate) fn accept_all(interfaces: Vec<Interface>) -> Self {
         Config {
             default_action: DefaultAction::Accept,
             interfaces,
@@ -227,7 +228,7 @@ impl UdpInterface {
 
     /// How messages and counters name it: `udp ADDRESS:PORT` for a server, `udp connect
     /// HOST:PORT` for a client.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match &self.connect {
             None => format!("udp {}", SocketAddr::new(self.local_address(), self.port)),
             Some(remote) => format!("udp connect {remote}"),
@@ -265,7 +266,7 @@ impl TcpInterface {
 
     /// How messages and counters name it: `tcp ADDRESS:PORT` for a server, `tcp connect
     /// HOST:PORT` for a client.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match &self.connect {
             None => format!("tcp {}", SocketAddr::new(self.local_address(), self.port)),
             Some(remote) => format!("tcp connect {remote}"),
@@ -471,28 +472,4 @@ pub enum Action {
     Call(ChainId),
     /// Evaluate the chain; if it does not decide, the default action applies.
     Goto(ChainId),
-}
-
-/// `if [signed|unsigned] [TYPE] [from SUBNET] [to SUBNET]`: every part present must match.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Condition {
-    /// `Some(true)`: the packet must be signed (`signed`); `Some(false)`: unsigned.
-    pub signed: Option<bool>,
-    /// Message id the packet must have.
-    pub message_id: Option<u32>,
-    /// Subnet the packet's source address must be in.
-    pub source: Option<Subnet>,
-    /// Subnet the destination being filtered for must be in.
-    pub dest: Option<Subnet>,
-}
-
-impl Condition {
-    /// Whether a packet with `message_id` from `source`, being sent towards `dest`,
-    /// matches; `signed` tells whether it arrived signed (and its signature was accepted).
-    pub fn matches(&self, message_id: u32, source: Address, dest: Address, signed: bool) -> bool {
-        self.signed.is_none_or(|s| s == signed)
-            && self.message_id.is_none_or(|id| id == message_id)
-            && self.source.is_none_or(|s| s.contains(source))
-            && self.dest.is_none_or(|d| d.contains(dest))
-    }
 }

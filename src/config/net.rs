@@ -47,7 +47,7 @@ pub struct IpRange {
 impl IpRange {
     /// Whether `ip` is in the range. An IPv4-mapped IPv6 address (`::ffff:a.b.c.d`, as a
     /// dual-stack socket reports IPv4 peers) counts as the IPv4 address `a.b.c.d`.
-    pub fn contains(&self, ip: IpAddr) -> bool {
+    pub(crate) fn contains(&self, ip: IpAddr) -> bool {
         let ip = match ip {
             IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(ip, IpAddr::V4),
             v4 => v4,
@@ -86,7 +86,7 @@ impl fmt::Display for IpRange {
 
 /// A mistake found in a piece of text: where (byte range within that text) and what.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TextError {
+pub(crate) struct TextError {
     /// The bytes at fault (empty: the place where something is missing).
     pub at: Range<usize>,
     /// What is wrong, in one line.
@@ -112,7 +112,7 @@ impl TextError {
 
 /// `HOST:PORT` split into its parts (byte ranges within the text), syntax only.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct HostPort {
+pub(crate) struct HostPort {
     /// The host, without brackets.
     pub host: Range<usize>,
     /// True when the host was written in brackets (an IPv6 address).
@@ -123,7 +123,7 @@ pub struct HostPort {
 
 /// Splits `HOST:PORT`, `[IPV6]:PORT`: the shape only; [`host`] and [`port`] check the
 /// values.
-pub fn split_host_port(text: &str) -> Result<HostPort, TextError> {
+pub(crate) fn split_host_port(text: &str) -> Result<HostPort, TextError> {
     let end = text.len();
     let (host, bracketed, rest) = if let Some(inner) = text.strip_prefix('[') {
         let Some(close) = inner.find(']') else {
@@ -181,7 +181,7 @@ pub fn split_host_port(text: &str) -> Result<HostPort, TextError> {
 }
 
 /// A port number written in decimal, within `min..=65535`.
-pub fn port(text: &str, min: u16) -> Result<u16, TextError> {
+pub(crate) fn port(text: &str, min: u16) -> Result<u16, TextError> {
     match text.parse::<u64>() {
         Ok(v) if (u64::from(min)..=65535).contains(&v) => Ok(v as u16),
         _ => Err(TextError::new(
@@ -193,7 +193,7 @@ pub fn port(text: &str, min: u16) -> Result<u16, TextError> {
 
 /// The host of a `connect`: an IPv6 address (when `bracketed`), an IPv4 address (text of
 /// digits and dots only) or a host name (letters, digits, `-` and `.`).
-pub fn host(text: &str, bracketed: bool) -> Result<Host, TextError> {
+pub(crate) fn host(text: &str, bracketed: bool) -> Result<Host, TextError> {
     if bracketed {
         return text
             .parse::<Ipv6Addr>()
@@ -212,7 +212,7 @@ pub fn host(text: &str, bracketed: bool) -> Result<Host, TextError> {
 }
 
 /// An IPv4 address `a.b.c.d`; a part above 255 is pointed at.
-pub fn ipv4(text: &str) -> Result<Ipv4Addr, TextError> {
+pub(crate) fn ipv4(text: &str) -> Result<Ipv4Addr, TextError> {
     let mut octets = [0u8; 4];
     let mut count = 0;
     let mut start = 0;
@@ -248,7 +248,7 @@ pub fn ipv4(text: &str) -> Result<Ipv4Addr, TextError> {
 
 /// Checks a host name: labels of letters, digits and `-` (not at either end of a label),
 /// separated by `.`; at most 253 characters.
-pub fn host_name(text: &str) -> Result<(), TextError> {
+pub(crate) fn host_name(text: &str) -> Result<(), TextError> {
     const NOTE: &str = "a host name is made of letters, digits, '-' and '.'";
     if let Some((i, c)) = text
         .char_indices()

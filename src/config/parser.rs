@@ -60,7 +60,7 @@ const INVALID_CONDITION: &str = "condition is empty or invalid";
 const EXPECTED_KEY_PATH: &str = "expected the path of a signing key file";
 
 /// Parses a whole configuration file (syntax only; meaning is checked by
-/// [`super::semantics`]).
+/// `super::semantics`).
 pub fn parse(src: &str) -> std::result::Result<Ast<'_>, Diagnostic> {
     let mut p = Parser {
         src,

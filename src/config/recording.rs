@@ -6,14 +6,14 @@ use super::Span;
 use super::ast::{Ast, RecordSetting};
 use super::diagnostic::Diagnostic;
 use super::model::{Condition, Recording};
-use super::semantics::ranged;
+use super::values::ranged;
 use crate::recording::pattern::{MAX_SUFFIX, NAME_MAX};
 use crate::recording::{FilePattern, Manifest};
 
 /// The recording a `record` block describes, given its `only` conditions already
 /// checked (`None` where one was wrong); every mistake is added to `errors`. A
 /// statement written twice counts the second time.
-pub fn check(
+pub(crate) fn check(
     ast: &Ast<'_>,
     settings: &[RecordSetting],
     only: Vec<Option<Condition>>,

@@ -4,13 +4,14 @@
 
 use super::ast::{
     self, ActionAst, AddressAst, Ast, Item, MaskAst, QueueSetting, RecordSetting, SerialSetting,
-    SubnetAst, YesNo,
+    SubnetAst,
 };
 use super::claims::Claim;
 use super::diagnostic::Diagnostic;
 use super::lines::LineIndex;
 use super::model::*;
 use super::sockets::{self, Kind};
+use super::values::{interface_signing, ranged};
 use super::{Span, suggest};
 use crate::address::{Address, PrefixMask, Subnet};
 use crate::dialect::{Dialect, Loader, UNKNOWN_ID, UNKNOWN_NAME};
@@ -115,7 +116,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                 }
             }
             Item::Stats { keyword, settings } => {
-                let endpoint = super::stats::check(ast, *keyword, settings, &mut cx.errors);
+                let endpoint = super::stats_block::check(ast, *keyword, settings, &mut cx.errors);
                 match stats_line {
                     Some(first) => cx.error(
                         Diagnostic::new(*keyword, "only one 'stats' block is allowed")
@@ -214,7 +215,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
 }
 
 /// A `call`/`goto` reference from one chain to another.
-struct Edge {
+struct ChainRef {
     from: ChainId,
     to: ChainId,
     at: Span,
@@ -226,7 +227,7 @@ struct Checker<'a, 'b> {
     errors: Vec<Diagnostic>,
     ids: HashMap<&'a str, ChainId>,
     names: Vec<(&'a str, Span)>,
-    edges: Vec<Edge>,
+    edges: Vec<ChainRef>,
     lines: LineIndex,
     /// The messages rules may name: built in, and from the `dialect` files.
     dialect: Dialect,
@@ -521,7 +522,7 @@ impl<'a> Checker<'a, '_> {
         }
         match self.ids.get(name) {
             Some(id) => {
-                self.edges.push(Edge {
+                self.edges.push(ChainRef {
                     from,
                     to: *id,
                     at: target,
@@ -688,39 +689,5 @@ impl<'a> Checker<'a, '_> {
             d = d.with_note(note);
         }
         self.error(d);
-    }
-}
-
-/// The signing settings of one interface block from its `signing_key` (the last one
-/// written) and `allow_unsigned` statements (the last one counts); `allow_unsigned`
-/// without a key is an error at the first of them.
-pub(super) fn interface_signing(
-    ast: &Ast<'_>,
-    key_file: Option<Span>,
-    allow_unsigned: &[YesNo],
-) -> Result<Option<InterfaceSigning>, Diagnostic> {
-    match (key_file, allow_unsigned.first()) {
-        (Some(path), _) => Ok(Some(InterfaceSigning {
-            key_file: ast.text(path).to_string(),
-            allow_unsigned: allow_unsigned.last().is_some_and(|v| v.yes),
-        })),
-        (None, None) => Ok(None),
-        (None, Some(first)) => Err(Diagnostic::new(
-            first.keyword,
-            "'allow_unsigned' needs a 'signing_key' in the same block",
-        )
-        .with_note(
-            "only a block with a signing key checks signatures; add 'signing_key PATH;' or leave out 'allow_unsigned'",
-        )),
-    }
-}
-
-/// `text` as a decimal number within `min..=max`, or the error text naming `what`.
-pub(super) fn ranged(text: &str, min: u64, max: u64, what: &str) -> Result<u64, String> {
-    match text.parse::<u64>() {
-        Ok(v) if (min..=max).contains(&v) => Ok(v),
-        _ => Err(format!(
-            "{what} ({text}) is outside of the allowed range ({min} - {max})"
-        )),
     }
 }

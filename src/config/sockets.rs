@@ -7,12 +7,12 @@ use super::ast::{Ast, IpAst, SocketSetting};
 use super::diagnostic::Diagnostic;
 use super::model::*;
 use super::net::{self, TextError};
-use super::semantics::ranged;
+use super::values::{interface_signing, ranged};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
 
 /// Which block is being checked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
+pub(crate) enum Kind {
     /// A `udp` block.
     Udp,
     /// A `tcp` block.
@@ -20,7 +20,7 @@ pub enum Kind {
 }
 
 /// Checks the statements of one `udp` or `tcp` block; `None` after reporting its errors.
-pub fn check(
+pub(crate) fn check(
     ast: &Ast<'_>,
     kind: Kind,
     settings: &[SocketSetting],
@@ -96,7 +96,7 @@ pub fn check(
             SocketSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
         }
     }
-    let signing = match super::semantics::interface_signing(ast, key_file, &allow_unsigned) {
+    let signing = match interface_signing(ast, key_file, &allow_unsigned) {
         Ok(signing) => signing,
         Err(d) => {
             cx.error(d);

@@ -2,7 +2,7 @@
 
 /// Edit distance between two strings, counted in characters: insertions, deletions,
 /// substitutions and swaps of two neighbours each cost 1 (optimal string alignment).
-pub fn edit_distance(a: &str, b: &str) -> usize {
+pub(crate) fn edit_distance(a: &str, b: &str) -> usize {
     let a: Vec<char> = a.chars().collect();
     let b: Vec<char> = b.chars().collect();
     let w = b.len() + 1;
@@ -30,13 +30,13 @@ pub fn edit_distance(a: &str, b: &str) -> usize {
 
 /// Longest word (in characters) that gets suggestions: longer than any keyword or
 /// MAVLink message name, so the search stays cheap whatever a file holds.
-pub const MAX_WORD: usize = 64;
+pub(crate) const MAX_WORD: usize = 64;
 
 /// Up to `max` candidates close to `word`, closest first (ties keep candidate order).
 /// "Close" means at most a third of the word's length in edits (at least 1, at most 3);
 /// candidates whose length differs by more are not compared, and a word longer than
 /// [`MAX_WORD`] gets none.
-pub fn closest<'c>(
+pub(crate) fn closest<'c>(
     word: &str,
     candidates: impl IntoIterator<Item = &'c str>,
     max: usize,
@@ -57,7 +57,7 @@ pub fn closest<'c>(
 }
 
 /// A ready-made note ("did you mean 'x'?" / "did you mean one of 'x', 'y'?") or `None`.
-pub fn did_you_mean<'c>(
+pub(crate) fn did_you_mean<'c>(
     word: &str,
     candidates: impl IntoIterator<Item = &'c str>,
 ) -> Option<String> {

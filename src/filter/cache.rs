@@ -1,5 +1,5 @@
 //! A bounded memo of filter verdicts keyed by (message id, source, destination, signed),
-//! each with the number of its rule walk's trace (see [`super::trace`]) so that answers
+//! each with the number of its rule walk's trace (see `super::trace`) so that answers
 //! from the memo still count the rules that matched.
 //!
 //! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was
@@ -112,7 +112,7 @@ impl VerdictCache {
 
     /// The remembered verdict and its trace number, if any.
     #[inline]
-    pub fn get_traced(
+    pub(crate) fn get_traced(
         &mut self,
         message_id: u32,
         source: Address,
@@ -149,7 +149,7 @@ impl VerdictCache {
     /// Remembers `verdict` and its trace number `trace` (below 2^31), replacing the
     /// slot's previous entry.
     #[inline]
-    pub fn insert_traced(
+    pub(crate) fn insert_traced(
         &mut self,
         message_id: u32,
         source: Address,

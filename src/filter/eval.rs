@@ -100,7 +100,7 @@ impl Evaluator {
     }
 
     /// How many rules all chains hold together.
-    pub fn rule_count(&self) -> usize {
+    pub(crate) fn rule_count(&self) -> usize {
         self.chains.iter().map(|c| c.rules.len()).sum()
     }
 

@@ -5,7 +5,7 @@
 //! The result of the filter depends only on the packet's message id, its source address,
 //! the destination address being filtered for and whether the packet arrived signed, so
 //! [`Filter`] memoizes it in a small bounded cache ([`cache`]): a router that evaluates
-//! the filter once per candidate address per link pays the rule walk ([`eval`]) only for
+//! the filter once per candidate address per link pays the rule walk (`eval`) only for
 //! the first packet of each (message id, source, destination, signed) key, however many
 //! rules the configuration has.
 //!
@@ -22,9 +22,10 @@
 //! assert_eq!(filter.check(0, src, dest, false), Verdict::Reject); // HEARTBEAT: default_action
 //! ```
 
+#[doc(hidden)]
 pub mod cache;
-pub mod eval;
-pub mod trace;
+pub(crate) mod eval;
+pub(crate) mod trace;
 
 use crate::address::Address;
 use crate::config::Config;
@@ -134,7 +135,7 @@ impl Filter {
 
     /// Goes on from `counts` (by this filter's flat rule numbers): what a reload carried
     /// over from the filter this one replaces is part of [`Filter::counts`] from now on.
-    pub fn carry_counts(&mut self, counts: &FilterCounts) {
+    pub(crate) fn carry_counts(&mut self, counts: &FilterCounts) {
         self.traces.carry(counts);
     }
 

@@ -13,7 +13,7 @@
 use std::collections::HashMap;
 
 /// Most distinct traces kept; real configurations produce a handful.
-pub const MAX_TRACES: usize = 4096;
+pub(crate) const MAX_TRACES: usize = 4096;
 
 /// The counts of one rule: evaluations its condition matched, and how many of them it
 /// decided.
@@ -59,7 +59,7 @@ pub struct Traces {
 impl Traces {
     /// The number of the trace (`matched`, `decider`), interned now if new; `None` when
     /// the table is full.
-    pub fn intern(&mut self, matched: &[u32], decider: Option<u32>) -> Option<u32> {
+    pub(crate) fn intern(&mut self, matched: &[u32], decider: Option<u32>) -> Option<u32> {
         let key = Trace {
             matched: matched.into(),
             decider,
@@ -80,7 +80,7 @@ impl Traces {
 
     /// Counts one evaluation of `len` bytes with trace `id`.
     #[inline]
-    pub fn hit(&mut self, id: u32, len: usize) {
+    pub(crate) fn hit(&mut self, id: u32, len: usize) {
         if let (Some(p), Some(b)) = (
             self.packets.get_mut(id as usize),
             self.bytes.get_mut(id as usize),
@@ -91,14 +91,14 @@ impl Traces {
     }
 
     /// Counts one evaluation of `len` bytes whose trace was not interned.
-    pub fn hit_direct(&mut self, matched: &[u32], decider: Option<u32>, len: usize) {
+    pub(crate) fn hit_direct(&mut self, matched: &[u32], decider: Option<u32>, len: usize) {
         let d = &mut self.direct;
         add(d, matched, decider, 1, len as u64);
     }
 
     /// Counts `base` as if this table had counted it (the counts a reload carries over
     /// from the filter it replaces).
-    pub fn carry(&mut self, base: &FilterCounts) {
+    pub(crate) fn carry(&mut self, base: &FilterCounts) {
         let d = &mut self.direct;
         if d.rules.len() < base.rules.len() {
             d.rules.resize(base.rules.len(), RuleCounts::default());

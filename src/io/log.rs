@@ -61,7 +61,7 @@ fn unix_now() -> i64 {
 }
 
 /// Writes log lines for one level (0 = none … 3 = every packet decision).
-pub struct Logger {
+pub(super) struct Logger {
     level: u8,
     /// This loop turn's lines, not yet handed to the standard-output writer.
     lines: Vec<u8>,
@@ -70,7 +70,7 @@ pub struct Logger {
 }
 
 /// `YYYY-MM-DD HH:MM:SS  ` for a UNIX time, in local time (UTC if it cannot be had).
-pub fn prefix_for(unix_seconds: i64) -> String {
+pub(super) fn prefix_for(unix_seconds: i64) -> String {
     match sys::local_time(unix_seconds) {
         Some((y, mo, d, h, mi, s)) => format!("{y:04}-{mo:02}-{d:02} {h:02}:{mi:02}:{s:02}  "),
         None => {
@@ -83,7 +83,7 @@ pub fn prefix_for(unix_seconds: i64) -> String {
 
 impl Logger {
     /// A logger printing events of `level` and below.
-    pub fn new(level: u8) -> Self {
+    pub(super) fn new(level: u8) -> Self {
         Logger {
             level,
             lines: Vec::new(),
@@ -99,7 +99,7 @@ impl Logger {
     }
 
     /// Prints `message` if `level` is enabled (at the next [`Logger::flush`]).
-    pub fn line(&mut self, level: u8, message: &dyn Display) {
+    pub(super) fn line(&mut self, level: u8, message: &dyn Display) {
         if level == 0 || level > self.level {
             return;
         }
@@ -111,12 +111,12 @@ impl Logger {
     }
 
     /// Prints a routing event at its level.
-    pub fn event(&mut self, event: &Event) {
+    pub(super) fn event(&mut self, event: &Event) {
         self.line(event.level(), event);
     }
 
     /// Hands the lines so far to the standard-output writer, without waiting for it.
-    pub fn flush(&mut self) {
+    pub(super) fn flush(&mut self) {
         if !self.lines.is_empty() {
             stdout_sink().push(&self.lines);
             self.lines.clear();
@@ -132,24 +132,24 @@ impl Drop for Logger {
 }
 
 /// A warning on standard error (not subject to the log level).
-pub fn warn(message: &dyn Display) {
+pub(super) fn warn(message: &dyn Display) {
     stderr_text(&format!("warning: {message}\n"));
 }
 
 /// An error on standard error (not subject to the log level).
-pub fn error(message: &dyn Display) {
+pub(super) fn error(message: &dyn Display) {
     stderr_text(&format!("error: {message}\n"));
 }
 
 /// Raw text on standard error, such as a multi-line report; lines should end in `\n`.
-pub fn stderr_text(text: &str) {
+pub(super) fn stderr_text(text: &str) {
     stderr_sink().push(text.as_bytes());
 }
 
 /// Waits at most `timeout` for everything handed over on both streams to be written
 /// (with a line for any lines dropped); gives up on a stuck reader. To be called once
 /// before the process exits, or what is buffered is lost.
-pub fn drain(timeout: Duration) {
+pub(super) fn drain(timeout: Duration) {
     let deadline = Instant::now() + timeout;
     let started = [STDOUT.get(), STDERR.get()];
     for sink in started.iter().flatten() {

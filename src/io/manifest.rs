@@ -19,7 +19,7 @@ use crate::recording::{FilePattern, Manifest};
 
 /// What is at the list's name.
 #[derive(Debug)]
-pub enum Stored {
+pub(crate) enum Stored {
     /// Nothing: no recording was made with this pattern here (or only by a mavtables
     /// that kept no list).
     Absent,
@@ -30,12 +30,12 @@ pub enum Stored {
 }
 
 /// The path of the list of `pattern`.
-pub fn list_path(pattern: &FilePattern) -> PathBuf {
+pub(crate) fn list_path(pattern: &FilePattern) -> PathBuf {
     Path::new(pattern.dir()).join(Manifest::file_name(pattern))
 }
 
 /// Reads the list of `pattern` from its file.
-pub fn read(pattern: &FilePattern) -> Stored {
+pub(crate) fn read(pattern: &FilePattern) -> Stored {
     match read_at(&list_path(pattern)) {
         Ok(Some(list)) => Stored::List(list),
         Ok(None) => Stored::Absent,
@@ -109,7 +109,7 @@ fn id_of(meta: &Metadata) -> FileId {
 
 /// Whether `name` in the directory of `pattern` is a recording the router created, by
 /// its list (`Err`: why the list could not be read).
-pub fn created(pattern: &FilePattern, name: &str) -> Result<bool, String> {
+pub(crate) fn created(pattern: &FilePattern, name: &str) -> Result<bool, String> {
     let list = match read(pattern) {
         Stored::List(list) => list,
         Stored::Absent => return Ok(false),
@@ -123,7 +123,7 @@ pub fn created(pattern: &FilePattern, name: &str) -> Result<bool, String> {
 }
 
 /// The recorder's list of the recordings it created, and its file.
-pub struct MadeList {
+pub(crate) struct MadeList {
     pattern: FilePattern,
     dir: PathBuf,
     list: Manifest,
@@ -140,7 +140,7 @@ pub struct MadeList {
 
 impl MadeList {
     /// The list of `pattern` as earlier runs left it; what is wrong with it is said.
-    pub fn open(pattern: &FilePattern) -> MadeList {
+    pub(crate) fn open(pattern: &FilePattern) -> MadeList {
         let path = list_path(pattern);
         let (list, may_save) = match read(pattern) {
             Stored::List(list) => (list, true),
@@ -189,7 +189,7 @@ impl MadeList {
 
     /// Lists `name`, just created and open as `file` (a file that cannot be told from
     /// others is not listed, and never removed).
-    pub fn add(&mut self, name: &str, file: &File) {
+    pub(crate) fn add(&mut self, name: &str, file: &File) {
         match file.metadata() {
             Ok(meta) => self.list.add(Created {
                 name: name.to_string(),
@@ -205,7 +205,7 @@ impl MadeList {
     /// The listed recordings that are still the files created, under names of the
     /// pattern, owned by the router's user; entries whose file is gone or replaced
     /// leave the list.
-    pub fn recordings(&mut self) -> Vec<Existing> {
+    pub(crate) fn recordings(&mut self) -> Vec<Existing> {
         let mut ours = Vec::new();
         let mut stale = Vec::new();
         for entry in self.list.entries() {
@@ -223,12 +223,12 @@ impl MadeList {
     }
 
     /// Takes `name` off the list (removed).
-    pub fn forget(&mut self, name: &str) {
+    pub(crate) fn forget(&mut self, name: &str) {
         self.list.forget(name);
     }
 
     /// Writes the list to its file; trouble is said once until it works again.
-    pub fn save(&mut self) {
+    pub(crate) fn save(&mut self) {
         if !self.may_save {
             return;
         }

@@ -9,20 +9,21 @@
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `notify`: systemd's readiness, reload and watchdog notifications;
 //! - `log`: log lines and messages, written without ever blocking the loop;
-//! - `recorder`: `.tlog` recordings, written by a thread of their own; [`manifest`]: the
+//! - `recorder`: `.tlog` recordings, written by a thread of their own; `manifest`: the
 //!   file listing the recordings it created (the only ones it removes);
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod log;
-pub mod manifest;
+pub(crate) mod manifest;
 mod notify;
 mod recorder;
 mod resolve;
 mod runtime;
 mod serial;
 mod state_file;
+#[doc(hidden)]
 pub mod stats_server;
 mod stream;
 #[allow(unsafe_code)]

@@ -16,7 +16,7 @@ use std::time::Duration;
 use super::sys;
 
 /// Where systemd listens, and the watchdog interval it asked for.
-pub struct Notifier {
+pub(super) struct Notifier {
     socket: UnixDatagram,
     to: SocketAddr,
     watchdog: Option<Duration>,
@@ -25,7 +25,7 @@ pub struct Notifier {
 impl Notifier {
     /// The notifier `$NOTIFY_SOCKET` and `$WATCHDOG_USEC` (for this process, if
     /// `$WATCHDOG_PID` names one) ask for; `None` when not under systemd.
-    pub fn from_env() -> Option<Notifier> {
+    pub(super) fn from_env() -> Option<Notifier> {
         let env = |k: &str| std::env::var(k).ok();
         let path = env("NOTIFY_SOCKET").filter(|p| !p.is_empty())?;
         let to = match path.strip_prefix('@') {
@@ -62,7 +62,7 @@ impl Notifier {
     }
 
     /// How often the watchdog wants `WATCHDOG=1` (half of `$WATCHDOG_USEC`), if at all.
-    pub fn watchdog_interval(&self) -> Option<Duration> {
+    pub(super) fn watchdog_interval(&self) -> Option<Duration> {
         self.watchdog
     }
 
@@ -71,12 +71,12 @@ impl Notifier {
     }
 
     /// `READY=1`: started, or done reloading.
-    pub fn ready(&self) {
+    pub(super) fn ready(&self) {
         self.send("READY=1\nSTATUS=routing\n");
     }
 
     /// `RELOADING=1` with the monotonic time the reload began.
-    pub fn reloading(&self) {
+    pub(super) fn reloading(&self) {
         self.send(&format!(
             "RELOADING=1\nSTATUS=reloading the configuration\nMONOTONIC_USEC={}\n",
             sys::monotonic_micros()
@@ -84,12 +84,12 @@ impl Notifier {
     }
 
     /// `STOPPING=1`: shutting down.
-    pub fn stopping(&self) {
+    pub(super) fn stopping(&self) {
         self.send("STOPPING=1\nSTATUS=stopping\n");
     }
 
     /// `WATCHDOG=1`: the loop is alive.
-    pub fn watchdog(&self) {
+    pub(super) fn watchdog(&self) {
         self.send("WATCHDOG=1\n");
     }
 }

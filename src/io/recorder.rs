@@ -35,7 +35,7 @@ use crate::routing::{Engine, Timestamp};
 
 /// What the queue between the loop and the writer may hold: seconds of the busiest
 /// links, so that a disk's short stall loses nothing.
-pub const QUEUE_BOUND: usize = 4 << 20;
+pub(super) const QUEUE_BOUND: usize = 4 << 20;
 /// The writer takes the queue early once it holds this much.
 const WAKE_AT: usize = QUEUE_BOUND / 4;
 /// The writer takes the queue at least this often, so that records reach the file
@@ -87,7 +87,7 @@ struct Shared {
 }
 
 /// The loop's handle on the recorder.
-pub struct Recorder {
+pub(super) struct Recorder {
     shared: Arc<Shared>,
     writer: Option<JoinHandle<()>>,
     /// The last timestamp queued, in microseconds since the epoch.
@@ -101,7 +101,7 @@ pub struct Recorder {
 impl Recorder {
     /// Starts the writer for `record`, whose path pattern is `pattern`; it opens the
     /// first file at once.
-    pub fn start(record: &Recording, pattern: FilePattern) -> Recorder {
+    pub(super) fn start(record: &Recording, pattern: FilePattern) -> Recorder {
         let shared = Arc::new(Shared::default());
         let (max_file_bytes, max_files, min_free_bytes) = (
             record.max_file_bytes,
@@ -141,7 +141,7 @@ impl Recorder {
 
     /// Queues the frames the core kept for recording, stamped with the wall clock:
     /// `now` on the core's clock is `wall_us` (microseconds since the epoch).
-    pub fn take_from(&mut self, engine: &mut Engine, now: Timestamp, wall_us: u64) {
+    pub(super) fn take_from(&mut self, engine: &mut Engine, now: Timestamp, wall_us: u64) {
         let mut queued = 0u64;
         let mut dropped = 0u64;
         let last = &mut self.last_us;
@@ -190,7 +190,7 @@ impl Recorder {
 
     /// The counters so far (`core_dropped`: frames the core's buffer could not keep,
     /// counted as queue full).
-    pub fn stats(&self, core_dropped: u64) -> RecorderStats {
+    pub(super) fn stats(&self, core_dropped: u64) -> RecorderStats {
         let c = &self.shared.counters;
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
         RecorderStats {
@@ -212,7 +212,7 @@ impl Recorder {
 
     /// Lets the writer write what is queued, sync and close its file, waiting at most
     /// `timeout` for it (a stuck disk cannot hold the exit).
-    pub fn finish(&mut self, timeout: Duration) {
+    pub(super) fn finish(&mut self, timeout: Duration) {
         {
             let mut q = self
                 .shared
@@ -571,7 +571,7 @@ fn local_now() -> LocalTime {
 
 /// The recorder for `record`, if its path is a valid pattern (the configuration checks
 /// a written one; a default one comes from `$LOGS_DIRECTORY`).
-pub fn start(record: &Recording) -> Option<Recorder> {
+pub(super) fn start(record: &Recording) -> Option<Recorder> {
     let path = record.path_pattern(|k| std::env::var(k).ok());
     match FilePattern::parse(&path) {
         Ok(pattern) => Some(Recorder::start(record, pattern)),

@@ -16,7 +16,7 @@ use mio::Waker;
 use crate::config::{Host, Remote};
 
 /// A look-up under way, or its answer.
-pub enum Lookup {
+pub(super) enum Lookup {
     /// The address is known.
     Done(io::Result<SocketAddr>),
     /// A thread is asking the resolver.
@@ -26,7 +26,7 @@ pub enum Lookup {
 impl Lookup {
     /// Starts looking `remote` up: an address answers at once; a name is asked on a
     /// thread that wakes the loop through `waker` when it has the answer.
-    pub fn start(remote: &Remote, waker: &Arc<Waker>) -> Self {
+    pub(super) fn start(remote: &Remote, waker: &Arc<Waker>) -> Self {
         let name = match &remote.host {
             Host::Ip(ip) => return Lookup::Done(Ok(SocketAddr::new(*ip, remote.port))),
             Host::Name(name) => name.clone(),
@@ -47,7 +47,7 @@ impl Lookup {
     }
 
     /// The answer if there is one, or the look-up still under way.
-    pub fn poll(self) -> Result<io::Result<SocketAddr>, Lookup> {
+    pub(super) fn poll(self) -> Result<io::Result<SocketAddr>, Lookup> {
         match self {
             Lookup::Done(answer) => Ok(answer),
             Lookup::Pending(rx) => match rx.try_recv() {

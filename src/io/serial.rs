@@ -31,7 +31,7 @@ fn open_port(config: &SerialInterface) -> io::Result<File> {
 }
 
 /// A serial port.
-pub struct SerialDriver {
+pub(super) struct SerialDriver {
     interface: InterfaceId,
     config: SerialInterface,
     file: Option<File>,
@@ -40,7 +40,7 @@ pub struct SerialDriver {
 
 impl SerialDriver {
     /// A closed port for `config` and the core's interface `interface`.
-    pub fn new(config: &SerialInterface, interface: InterfaceId) -> Self {
+    pub(super) fn new(config: &SerialInterface, interface: InterfaceId) -> Self {
         SerialDriver {
             interface,
             config: config.clone(),

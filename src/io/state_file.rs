@@ -22,7 +22,7 @@ struct Pending {
 }
 
 /// A signing state file and its writer thread.
-pub struct StateFile {
+pub(super) struct StateFile {
     path: PathBuf,
     shared: Arc<(Mutex<Pending>, Condvar)>,
     writer: Option<JoinHandle<()>>,
@@ -33,7 +33,7 @@ impl StateFile {
     /// be read or understood: said in the log), and a writer for it. Something at `path`
     /// that is not a regular file, or is larger than [`STATE_FILE_LIMIT`], is an error:
     /// it is not read, and the writer would rename a file over it.
-    pub fn open(path: PathBuf) -> Result<(StateFile, Option<SavedState>), FileError> {
+    pub(super) fn open(path: PathBuf) -> Result<(StateFile, Option<SavedState>), FileError> {
         let saved = match read_regular(&path, STATE_FILE_LIMIT) {
             Ok(bytes) => match SavedState::parse(&String::from_utf8_lossy(&bytes)) {
                 Ok(state) => Some(state),
@@ -78,7 +78,7 @@ impl StateFile {
     }
 
     /// Hands `state` to the writer (replacing one it has not written yet).
-    pub fn save(&self, state: &SavedState) {
+    pub(super) fn save(&self, state: &SavedState) {
         let (lock, cv) = &*self.shared;
         let mut p = lock.lock().unwrap_or_else(PoisonError::into_inner);
         p.text = Some(state.to_text());
@@ -86,7 +86,7 @@ impl StateFile {
     }
 
     /// Stops the writer and writes `last` (the state at exit) before returning.
-    pub fn finish(mut self, last: Option<&SavedState>) {
+    pub(super) fn finish(mut self, last: Option<&SavedState>) {
         {
             let (lock, cv) = &*self.shared;
             let mut p = lock.lock().unwrap_or_else(PoisonError::into_inner);

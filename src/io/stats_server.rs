@@ -44,7 +44,7 @@ pub struct StatsServer {
 
 impl StatsServer {
     /// Listens as `endpoint` says and serves from a thread of its own.
-    pub fn start(endpoint: &StatsEndpoint) -> io::Result<StatsServer> {
+    pub(crate) fn start(endpoint: &StatsEndpoint) -> io::Result<StatsServer> {
         let listener = TcpListener::bind(SocketAddr::new(endpoint.address, endpoint.port))?;
         let address = listener.local_addr()?;
         let latest: Latest = Arc::default();
@@ -63,12 +63,12 @@ impl StatsServer {
     }
 
     /// Where it listens.
-    pub fn address(&self) -> SocketAddr {
+    pub(crate) fn address(&self) -> SocketAddr {
         self.address
     }
 
     /// Makes `snapshot` the one requests are answered from.
-    pub fn publish(&self, snapshot: StatsSnapshot) {
+    pub(crate) fn publish(&self, snapshot: StatsSnapshot) {
         let snapshot = Arc::new(snapshot);
         *self.latest.lock().unwrap_or_else(PoisonError::into_inner) = snapshot;
     }

@@ -25,7 +25,7 @@ use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, SocketAddrV4, SocketAddrV6};
 use std::os::fd::{AsRawFd, RawFd};
 
 /// Largest batch handed to one `recvmmsg` / `sendmmsg` call.
-pub const MAX_BATCH: usize = 64;
+pub(super) const MAX_BATCH: usize = 64;
 
 /// Room for an IPv4 or IPv6 socket address as the kernel reads and writes it.
 type RawAddr = libc::sockaddr_in6;
@@ -103,7 +103,7 @@ struct RecvHeaders {
 /// Receive buffers for [`recv_batch`]: `MAX_BATCH` slots of `slot_len` bytes, and the
 /// headers that describe them to the kernel. The headers are set up once, so that a call
 /// that reads one datagram does not first write 6 KiB of them.
-pub struct RecvBatch {
+pub(super) struct RecvBatch {
     data: Vec<u8>,
     slot_len: usize,
     headers: Box<RecvHeaders>,
@@ -114,7 +114,7 @@ pub struct RecvBatch {
 
 impl RecvBatch {
     /// Buffers for datagrams of up to `slot_len` bytes (longer ones are truncated).
-    pub fn new(slot_len: usize) -> Self {
+    pub(super) fn new(slot_len: usize) -> Self {
         let mut data = vec![0u8; slot_len * MAX_BATCH];
         // SAFETY: arrays of plain-old-data C structs; all-zero is a valid value.
         let mut headers: Box<RecvHeaders> =
@@ -143,7 +143,7 @@ impl RecvBatch {
 
     /// Datagrams received by the last call: (sender, bytes). A sender that is neither
     /// IPv4 nor IPv6 is `None`.
-    pub fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
+    pub(super) fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
         (0..self.count).map(move |i| {
             let start = i * self.slot_len;
             (self.addrs[i], &self.data[start..start + self.lens[i]])
@@ -153,7 +153,7 @@ impl RecvBatch {
 
 /// Receives up to [`MAX_BATCH`] datagrams without blocking. Returns how many arrived
 /// (`WouldBlock` when none were waiting).
-pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
+pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
     let fd: RawFd = fd.as_raw_fd();
     let h = &mut *batch.headers;
     // The kernel wrote the address lengths of the datagrams of the last call.
@@ -188,7 +188,7 @@ pub fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize>
 /// Asks for a socket buffer of `bytes` beyond the system's limit
 /// (`net.core.rmem_max` / `wmem_max`): `SO_RCVBUFFORCE` or `SO_SNDBUFFORCE`, which only a
 /// process with `CAP_NET_ADMIN` may use. Fails with `EPERM` otherwise.
-pub fn force_buffer_size(fd: &impl AsRawFd, receive: bool, bytes: usize) -> io::Result<()> {
+pub(super) fn force_buffer_size(fd: &impl AsRawFd, receive: bool, bytes: usize) -> io::Result<()> {
     let option = if receive {
         libc::SO_RCVBUFFORCE
     } else {
@@ -230,7 +230,7 @@ type CmsgBuf = [u64; 4];
 /// True if the kernel offers UDP GSO (`UDP_SEGMENT`) on this socket. A kernel without
 /// it would not refuse the control message but ignore it, and send the whole run as a
 /// single datagram, so GSO is only used where this says yes.
-pub fn gso_supported(fd: &impl AsRawFd) -> bool {
+pub(super) fn gso_supported(fd: &impl AsRawFd) -> bool {
     let mut value: libc::c_int = 0;
     let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
     // SAFETY: both pointers are to live locals of the sizes given.
@@ -258,7 +258,7 @@ pub fn gso_supported(fd: &impl AsRawFd) -> bool {
 /// When the kernel or the route refuses a GSO run (`EIO` or `EINVAL` for a message of
 /// several datagrams), the error comes back as [`io::ErrorKind::Unsupported`]: call
 /// again without GSO.
-pub fn send_batch<'a>(
+pub(super) fn send_batch<'a>(
     fd: &impl AsRawFd,
     batch: &mut SendBatch,
     datagrams: impl IntoIterator<Item = (SocketAddr, &'a [u8])>,
@@ -369,11 +369,11 @@ struct SendHeaders {
 }
 
 /// Scratch space of [`send_batch`]: one per socket that sends.
-pub struct SendBatch(Box<SendHeaders>);
+pub(super) struct SendBatch(Box<SendHeaders>);
 
 impl SendBatch {
     /// Empty headers.
-    pub fn new() -> Self {
+    pub(super) fn new() -> Self {
         // SAFETY: arrays of plain-old-data C structs, integers and `SocketAddr`s, for
         // which all-zero bytes are valid values (an IPv4 address 0.0.0.0:0).
         SendBatch(Box::new(unsafe { MaybeUninit::zeroed().assume_init() }))
@@ -388,7 +388,7 @@ impl Default for SendBatch {
 
 /// Local calendar time of a UNIX time in seconds: (year, month 1–12, day, hour, minute,
 /// second). `None` if the C library cannot convert it.
-pub fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
+pub(super) fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
     let t: libc::time_t = unix_seconds;
     // SAFETY: `tm` is plain old data; localtime_r writes it and reads only `t`.
     let mut tm: libc::tm = unsafe { MaybeUninit::zeroed().assume_init() };
@@ -409,7 +409,7 @@ pub fn local_time(unix_seconds: i64) -> Option<(i32, u32, u32, u32, u32, u32)> {
 
 /// The bytes an unprivileged process may still write on the file system holding `path`
 /// (`statvfs`: available blocks times the fragment size).
-pub fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
+pub(super) fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
     use std::os::unix::ffi::OsStrExt;
     let c_path = std::ffi::CString::new(path.as_os_str().as_bytes())
         .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "path holds a NUL byte"))?;
@@ -428,13 +428,13 @@ pub fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
 
 /// The user the process acts as (`geteuid`): the owner of the files it creates, and
 /// the only owner of recordings and of their list that the recorder believes.
-pub fn effective_uid() -> u32 {
+pub(super) fn effective_uid() -> u32 {
     // SAFETY: geteuid(2) takes no arguments, touches no memory and always succeeds.
     unsafe { libc::geteuid() }
 }
 
 /// `CLOCK_MONOTONIC` in microseconds: the clock systemd reads `MONOTONIC_USEC=` against.
-pub fn monotonic_micros() -> u64 {
+pub(super) fn monotonic_micros() -> u64 {
     let mut t = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
@@ -450,13 +450,13 @@ pub fn monotonic_micros() -> u64 {
 }
 
 /// A monotonic one-shot timer as a file descriptor that becomes readable when it fires.
-pub struct TimerFd {
+pub(super) struct TimerFd {
     fd: std::os::fd::OwnedFd,
 }
 
 impl TimerFd {
     /// A disarmed, non-blocking timer on `CLOCK_MONOTONIC`.
-    pub fn new() -> io::Result<Self> {
+    pub(super) fn new() -> io::Result<Self> {
         // SAFETY: plain system call with constant flags.
         let fd = unsafe {
             libc::timerfd_create(
@@ -473,7 +473,7 @@ impl TimerFd {
     }
 
     /// Fires once after `delay` (a zero delay fires at once); `None` disarms.
-    pub fn set(&self, delay: Option<std::time::Duration>) -> io::Result<()> {
+    pub(super) fn set(&self, delay: Option<std::time::Duration>) -> io::Result<()> {
         let mut value = libc::itimerspec {
             it_interval: libc::timespec {
                 tv_sec: 0,
@@ -500,7 +500,7 @@ impl TimerFd {
     }
 
     /// Clears a fired timer so it can fire again.
-    pub fn acknowledge(&self) {
+    pub(super) fn acknowledge(&self) {
         let mut expirations = [0u8; 8];
         // SAFETY: reads at most 8 bytes into a live local buffer; errors (EAGAIN when
         // it had not fired) are of no interest.
@@ -516,7 +516,7 @@ impl AsRawFd for TimerFd {
 
 /// Takes over the file descriptor of a serial port configured by the `serialport` crate
 /// (raw mode, baud rate, flow control) as a non-blocking [`std::fs::File`].
-pub fn nonblocking_file(port: serialport::TTYPort) -> io::Result<std::fs::File> {
+pub(super) fn nonblocking_file(port: serialport::TTYPort) -> io::Result<std::fs::File> {
     let fd = std::os::fd::IntoRawFd::into_raw_fd(port);
     // SAFETY: `into_raw_fd` hands over sole ownership of an open descriptor.
     let file = unsafe { <std::fs::File as std::os::fd::FromRawFd>::from_raw_fd(fd) };
@@ -549,7 +549,7 @@ struct SerialInfo([u8; 128]);
 /// Asks the serial driver of `port` for low latency (`ASYNC_LOW_LATENCY`, which any user
 /// may set), as mavlink-router does. Fails with `ENOTTY` or `EINVAL` where the device has
 /// no such setting (a pseudo-terminal, some USB CDC devices); the port works either way.
-pub fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
+pub(super) fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
     let mut info = SerialInfo([0; 128]);
     let fd = port.as_raw_fd();
     // SAFETY: TIOCGSERIAL writes one `struct serial_struct`, which fits in `info`.
@@ -575,7 +575,7 @@ pub fn request_low_latency(port: &impl AsRawFd) -> io::Result<()> {
 /// needs checksum offload and refuses such sockets, so tests use it to see the GSO
 /// fallback at work.
 #[cfg(test)]
-pub fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
+pub(crate) fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
     let one: libc::c_int = 1;
     // SAFETY: passes a pointer to a live c_int and its size.
     let r = unsafe {

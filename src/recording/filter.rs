@@ -1,7 +1,7 @@
 //! Which received frames are recorded: the `only if …;` statements of the `record`
 //! block, any of which may match (none written: every frame).
 
-use crate::config::Condition;
+use crate::condition::Condition;
 use crate::wire::Frame;
 
 /// The conditions a frame must meet (any one of them) to be recorded.

@@ -22,7 +22,7 @@ use super::FilePattern;
 
 /// The longest list read (a longer file is not one mavtables wrote) or written (the
 /// oldest entries are left out): some 20 000 recordings.
-pub const MAX_BYTES: usize = 1 << 20;
+pub(crate) const MAX_BYTES: usize = 1 << 20;
 
 /// What the list file's name adds to the pattern.
 const EXTENSION: &str = ".mavtables";
@@ -53,7 +53,7 @@ pub struct Created {
 
 /// What is at a listed name now.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Found {
+pub(crate) enum Found {
     /// Nothing.
     Gone,
     /// Something that cannot be looked at now (no permission, an I/O error).
@@ -71,7 +71,7 @@ pub enum Found {
 
 /// What a listed name is now.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Verdict {
+pub(crate) enum Verdict {
     /// The recording the router created: rotation may remove it.
     Ours,
     /// Not, or no longer, the file created: the entry goes.
@@ -82,7 +82,7 @@ pub enum Verdict {
 
 /// What `entry` is, given what is `found` at its name, for a router running as user
 /// `us`.
-pub fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> Verdict {
+pub(crate) fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> Verdict {
     if !pattern.matches(&entry.name) {
         return Verdict::Forget;
     }
@@ -99,7 +99,7 @@ pub fn judge(entry: &Created, pattern: &FilePattern, found: Found, us: u32) -> V
 /// Whether a list file owned by `owner` with permission bits `mode` may be believed by
 /// a router running as user `us`: only if `us` owns it and nobody else may write it
 /// (anyone else could list a file of `us` for removal). `Err` says why not.
-pub fn trust(owner: u32, mode: u32, us: u32) -> Result<(), String> {
+pub(crate) fn trust(owner: u32, mode: u32, us: u32) -> Result<(), String> {
     if owner != us {
         return Err(format!(
             "it belongs to user {owner}, not to the user mavtables runs as ({us})"
@@ -120,18 +120,18 @@ pub struct Manifest {
 impl Manifest {
     /// The list file's name for `pattern` (in the pattern's directory): a dot, the
     /// pattern's file name as written, `.mavtables`.
-    pub fn file_name(pattern: &FilePattern) -> String {
+    pub(crate) fn file_name(pattern: &FilePattern) -> String {
         format!(".{}{EXTENSION}", pattern.name_pattern())
     }
 
     /// The name the list is written under before it is renamed to
     /// [`Manifest::file_name`].
-    pub fn temp_name(pattern: &FilePattern) -> String {
+    pub(crate) fn temp_name(pattern: &FilePattern) -> String {
         format!("{}{TEMP}", Manifest::file_name(pattern))
     }
 
     /// The length in bytes of the longest name the list takes (the temporary one).
-    pub fn longest_name(pattern: &FilePattern) -> usize {
+    pub(crate) fn longest_name(pattern: &FilePattern) -> usize {
         1 + pattern.name_pattern().len() + EXTENSION.len() + TEMP.len()
     }
 
@@ -148,7 +148,7 @@ impl Manifest {
     }
 
     /// The text of the list file for `pattern`: a comment saying what it is, then one
-    /// line per recording. When that would be longer than [`MAX_BYTES`] the oldest are
+    /// line per recording. When that would be longer than `MAX_BYTES` the oldest are
     /// left out; how many is the second value.
     pub fn to_text(&self, pattern: &FilePattern) -> (String, usize) {
         let header = format!(
@@ -182,23 +182,23 @@ impl Manifest {
     }
 
     /// Adds a recording just created (one of the same name is replaced).
-    pub fn add(&mut self, created: Created) {
+    pub(crate) fn add(&mut self, created: Created) {
         self.forget(&created.name);
         self.entries.push(created);
     }
 
     /// Takes `name` off the list.
-    pub fn forget(&mut self, name: &str) {
+    pub(crate) fn forget(&mut self, name: &str) {
         self.entries.retain(|e| e.name != name);
     }
 
     /// The entry for `name`, if it is listed.
-    pub fn get(&self, name: &str) -> Option<&Created> {
+    pub(crate) fn get(&self, name: &str) -> Option<&Created> {
         self.entries.iter().find(|e| e.name == name)
     }
 
     /// Every entry, oldest first.
-    pub fn entries(&self) -> &[Created] {
+    pub(crate) fn entries(&self) -> &[Created] {
         &self.entries
     }
 }

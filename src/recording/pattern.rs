@@ -69,11 +69,11 @@ pub struct FilePattern {
 }
 
 /// The largest suffix tried when a file name is taken (`-1` … `-9999`).
-pub const MAX_SUFFIX: u32 = 9999;
+pub(crate) const MAX_SUFFIX: u32 = 9999;
 
 /// The longest file name (in bytes) the file systems mavtables runs on allow (Linux's
 /// `NAME_MAX`).
-pub const NAME_MAX: usize = 255;
+pub(crate) const NAME_MAX: usize = 255;
 
 const NOTE: &str = "the file name may use %Y %m %d %H %M %S (the time the file is opened) and %% (a '%'), e.g. /var/log/mavtables/%Y-%m-%d_%H-%M-%S.tlog";
 
@@ -166,25 +166,25 @@ impl FilePattern {
     }
 
     /// The directory the recordings are written in (`.` for a bare file name).
-    pub fn dir(&self) -> &str {
+    pub(crate) fn dir(&self) -> &str {
         &self.dir
     }
 
     /// The file name part as written, with its directives (`%Y-%m-%d_%H-%M-%S.tlog`).
-    pub fn name_pattern(&self) -> &str {
+    pub(crate) fn name_pattern(&self) -> &str {
         &self.name_pattern
     }
 
     /// The one name the pattern makes before any suffix, when it has no directives
     /// (`important.conf`); `None` when its names change with the time.
-    pub fn fixed_name(&self) -> Option<String> {
+    pub(crate) fn fixed_name(&self) -> Option<String> {
         let timed = self.pieces.iter().any(|p| matches!(p, Piece::Field { .. }));
         (!timed).then(|| self.name(&LocalTime::default(), 0))
     }
 
     /// The length in bytes of the longest name the pattern makes, with the suffix
     /// `-MAX_SUFFIX`.
-    pub fn longest_name(&self) -> usize {
+    pub(crate) fn longest_name(&self) -> usize {
         self.pieces
             .iter()
             .map(|piece| match piece {
@@ -229,7 +229,7 @@ impl FilePattern {
 
     /// The suffix number of `name` (0 without one), if the pattern makes it: files opened
     /// within one second differ only in it, and a higher one is newer.
-    pub fn suffix_of(&self, name: &str) -> Option<u32> {
+    pub(crate) fn suffix_of(&self, name: &str) -> Option<u32> {
         suffix_from(&self.pieces, name.as_bytes())
     }
 }

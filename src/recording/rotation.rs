@@ -5,7 +5,7 @@
 
 /// A recording found in the directory.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Existing {
+pub(crate) struct Existing {
     /// Its file name.
     pub name: String,
     /// Its modification time (any monotonic unit, e.g. nanoseconds since the epoch).
@@ -19,7 +19,7 @@ pub struct Existing {
 
 /// Whether a file holding `size` bytes is closed before `next` more bytes are written,
 /// so that it stays within `max` (a file always takes at least one record).
-pub fn must_rotate(size: u64, next: u64, max: u64) -> bool {
+pub(crate) fn must_rotate(size: u64, next: u64, max: u64) -> bool {
     size > 0 && size.saturating_add(next) > max
 }
 
@@ -35,7 +35,7 @@ fn removable<'a>(files: &'a [Existing], current: Option<&str>) -> Vec<&'a Existi
 
 /// The recordings to remove so that at most `max_files` remain (0: no limit), counting
 /// `current` (which stays).
-pub fn over_count(files: &[Existing], max_files: u32, current: Option<&str>) -> Vec<String> {
+pub(crate) fn over_count(files: &[Existing], max_files: u32, current: Option<&str>) -> Vec<String> {
     let max = usize::try_from(max_files).unwrap_or(usize::MAX);
     if max == 0 || files.len() <= max {
         return Vec::new();
@@ -51,7 +51,7 @@ pub fn over_count(files: &[Existing], max_files: u32, current: Option<&str>) -> 
 /// What to do before writing `needed` bytes on a disk with `free` bytes free, keeping
 /// `min_free` free.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SpacePlan {
+pub(crate) struct SpacePlan {
     /// Old recordings to remove first, oldest first.
     pub remove: Vec<String>,
     /// Whether there is room once they are gone (if not, the bytes are not written).
@@ -61,7 +61,7 @@ pub struct SpacePlan {
 /// Which old recordings to remove, oldest first, so that `needed` bytes can be written
 /// and `min_free` bytes stay free; if removing all of them is not enough, none is
 /// removed (they are worth more than the records that would not fit anyway).
-pub fn make_room(
+pub(crate) fn make_room(
     files: &[Existing],
     free: u64,
     needed: u64,

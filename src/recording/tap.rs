@@ -4,11 +4,11 @@
 //! counted and not kept. Routing never depends on it.
 
 use super::filter::RecordFilter;
-use crate::routing::Timestamp;
+use crate::time::Timestamp;
 use crate::wire::Frame;
 
 /// What the tap holds at most between two takes: far more than one loop turn receives.
-pub const TAP_BOUND: usize = 1 << 20;
+pub(crate) const TAP_BOUND: usize = 1 << 20;
 
 /// Frames waiting to be recorded.
 #[derive(Debug, Default)]
@@ -34,7 +34,7 @@ impl Tap {
     /// Keeps `frame`, which arrived at `now` (signed and verified, or not), if the filter
     /// passes it and there is room.
     #[inline]
-    pub fn offer(&mut self, frame: &Frame<'_>, signed: bool, now: Timestamp) {
+    pub(crate) fn offer(&mut self, frame: &Frame<'_>, signed: bool, now: Timestamp) {
         if !self.filter.matches(frame, signed) {
             return;
         }
@@ -52,13 +52,13 @@ impl Tap {
 
     /// True when no frame is waiting.
     #[inline]
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.records.is_empty()
     }
 
     /// Hands every waiting frame to `take` with its time of arrival, oldest first, and
     /// forgets them.
-    pub fn drain(&mut self, take: &mut impl FnMut(Timestamp, &[u8])) {
+    pub(crate) fn drain(&mut self, take: &mut impl FnMut(Timestamp, &[u8])) {
         let mut at = 0;
         for &(now, len) in &self.records {
             let end = at + usize::from(len);

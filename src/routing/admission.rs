@@ -28,7 +28,7 @@ pub struct Refused {
 
 impl Refused {
     /// Counts a refusal; true the first time for its reason (the one worth saying).
-    pub fn count(&mut self, why: Refusal) -> bool {
+    pub(crate) fn count(&mut self, why: Refusal) -> bool {
         let n = match why {
             Refusal::NotAllowed => &mut self.not_allowed,
             Refusal::Full => &mut self.full,
@@ -39,7 +39,7 @@ impl Refused {
 }
 
 /// Whether a new remote at `ip` may become a link when `current` links exist.
-pub fn admit(limits: &PeerLimits, current: usize, ip: IpAddr) -> Result<(), Refusal> {
+pub(crate) fn admit(limits: &PeerLimits, current: usize, ip: IpAddr) -> Result<(), Refusal> {
     let ip = match ip {
         IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(ip, IpAddr::V4),
         v4 => v4,
@@ -54,7 +54,12 @@ pub fn admit(limits: &PeerLimits, current: usize, ip: IpAddr) -> Result<(), Refu
 }
 
 /// The line that says, once, that remotes are being refused.
-pub fn refusal_text(described: &str, why: Refusal, peer: IpAddr, limits: &PeerLimits) -> String {
+pub(crate) fn refusal_text(
+    described: &str,
+    why: Refusal,
+    peer: IpAddr,
+    limits: &PeerLimits,
+) -> String {
     match why {
         Refusal::NotAllowed => format!(
             "{described}: {peer} is outside the allowed address ranges; such remotes are \

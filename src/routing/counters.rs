@@ -43,7 +43,7 @@ pub struct LinkCounters {
 impl LinkCounters {
     /// Notes a received frame of `len` bytes.
     #[inline]
-    pub fn received(&mut self, len: usize) {
+    pub(crate) fn received(&mut self, len: usize) {
         self.frames_in += 1;
         self.bytes_in += len as u64;
     }

@@ -2,9 +2,9 @@
 //! packet is filtered for on one link, and what comes of it.
 
 use super::pool::AddressPool;
-use super::time::Timestamp;
 use crate::address::Address;
 use crate::filter::{Filter, Verdict};
+use crate::time::Timestamp;
 
 /// The outcome of offering a packet to one link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,7 +27,7 @@ pub enum Decision {
 #[inline]
 // The packet's facts as plain values, as the per-link hot loop has them at hand.
 #[allow(clippy::too_many_arguments)]
-pub fn decide(
+pub(crate) fn decide(
     filter: &mut Filter,
     pool: &AddressPool,
     reaches_unknown: bool,

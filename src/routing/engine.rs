@@ -37,7 +37,7 @@ use super::admission;
 use super::counters::InterfaceReport;
 use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
-use super::interface::{Interface, InterfaceId, Kind, Reopen};
+use super::interface::{InterfaceId, Kind, LiveInterface as Interface, Reopen};
 use super::link::LinkId;
 use super::pacer::Pace;
 use super::queue::Packet;

@@ -63,7 +63,7 @@ pub enum Event {
 
 impl Event {
     /// The lowest log level (1–3) at which the original prints this event.
-    pub fn level(&self) -> u8 {
+    pub(crate) fn level(&self) -> u8 {
         match self {
             Event::NewComponent { .. } => 1,
             Event::Received { .. } => 2,

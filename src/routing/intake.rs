@@ -10,15 +10,15 @@ use super::engine::Notice;
 use super::link::LinkId;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
-use super::time::Timestamp;
 use crate::recording::Tap;
 use crate::signing::clock::UNITS_PER_SEC;
 use crate::signing::{Admission, Edge, Refusal, Signing};
+use crate::time::Timestamp;
 use crate::wire::{Frame, ParseEvents, Rejection};
 
 /// How many distinct unknown ids are reported; beyond that they are only counted, so a
 /// flood of random ids can neither fill the log nor grow memory.
-pub const MAX_REPORTED_IDS: usize = 1024;
+pub(crate) const MAX_REPORTED_IDS: usize = 1024;
 
 /// What the first unknown-id report adds: how to let such frames through.
 pub const UNKNOWN_ID_HINT: &str = "frames of message ids no dialect defines are dropped; \
@@ -27,12 +27,12 @@ to forward them add 'dialect FILE.xml;' (MAVLink XML defining them) or \
 
 /// Message ids already reported as unknown (once per id, not per frame).
 #[derive(Debug, Default)]
-pub struct UnknownIds(HashSet<u32>);
+pub(crate) struct UnknownIds(HashSet<u32>);
 
 impl UnknownIds {
     /// Reports `id` the first time it is seen (the first report says how to let such
     /// frames through).
-    pub fn report(&mut self, id: u32, notices: &mut VecDeque<Notice>) {
+    pub(crate) fn report(&mut self, id: u32, notices: &mut VecDeque<Notice>) {
         if self.0.len() >= MAX_REPORTED_IDS || !self.0.insert(id) {
             return;
         }
@@ -49,7 +49,7 @@ impl UnknownIds {
 }
 
 /// Where the bytes being parsed come from.
-pub enum Sender<'a> {
+pub(crate) enum Sender<'a> {
     /// A stream with its one link.
     Stream(LinkId),
     /// A peer of a datagram interface, with its link once it has one.
@@ -64,7 +64,7 @@ pub enum Sender<'a> {
 }
 
 /// Parser events of one input, routed through the router.
-pub struct Intake<'a> {
+pub(crate) struct Intake<'a> {
     /// The router.
     pub router: &'a mut Router,
     /// The router's output of the current call.

@@ -11,9 +11,9 @@ use super::pacer::{DEFAULT_BURST, Pacer};
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF, MAX_RECONNECT_WAIT};
 use super::remotes::Remotes;
 use super::stale::StaleTail;
-use super::time::Timestamp;
 use crate::config::PeerLimits;
 use crate::signing::Edge;
+use crate::time::Timestamp;
 use crate::wire::{Parser, ParserStats};
 
 /// Identifies an interface of an [`Engine`](super::Engine) for as long as it exists (the
@@ -27,11 +27,11 @@ pub struct InterfaceId(pub usize);
 /// this much time at the configured rate beyond the largest datagram, but never more
 /// than one more largest datagram: a burst is at most one datagram plus at most one
 /// datagram's worth of catching up.
-pub const PACING_SLACK_MICROS: u64 = 5_000;
+pub(crate) const PACING_SLACK_MICROS: u64 = 5_000;
 
 /// The pacer of an interface limited to `rate` bit/s (0 = unlimited), with
 /// [`PACING_SLACK_MICROS`] of slack.
-pub fn pacer_for(rate: u64) -> Pacer {
+pub(crate) fn pacer_for(rate: u64) -> Pacer {
     let slack =
         (rate.saturating_mul(PACING_SLACK_MICROS) / 8 / 1_000_000).min(u64::from(DEFAULT_BURST));
     let burst = u64::from(DEFAULT_BURST).saturating_add(slack);
@@ -98,7 +98,7 @@ impl Reopen {
 
     /// A TCP client: tried again at once, then with a backoff up to 1 s; what was
     /// queued while it was down longer than `forget_after` is dropped.
-    pub const fn client(forget_after: std::time::Duration) -> Reopen {
+    pub(crate) const fn client(forget_after: std::time::Duration) -> Reopen {
         Reopen {
             first_wait: std::time::Duration::ZERO,
             max_wait: MAX_RECONNECT_WAIT,
@@ -119,7 +119,7 @@ impl Reopen {
 impl Kind {
     /// A stream that is `link`, in state `connection`, accepted by `accepted_by` (if
     /// any), coming back after a loss as `reopen` says.
-    pub fn stream(
+    pub(crate) fn stream(
         link: LinkId,
         connection: Connection,
         accepted_by: Option<InterfaceId>,
@@ -149,9 +149,10 @@ pub struct Reopen {
     pub down_since: Option<Timestamp>,
 }
 
-/// The core's state of one interface.
+/// The core's state of one interface as it runs (what the file says about it is
+/// [`crate::config::Interface`]).
 #[derive(Debug)]
-pub struct Interface {
+pub struct LiveInterface {
     /// How the counters report names it (`udp 0.0.0.0:14500`, or the device path).
     pub label: String,
     /// How messages name it (`udp 0.0.0.0:14500`, `serial device /dev/ttyUSB0`).
@@ -177,10 +178,10 @@ pub struct Interface {
     pub signing: Option<Edge>,
 }
 
-impl Interface {
+impl LiveInterface {
     /// A new interface of `kind`.
     pub fn new(label: String, described: String, tail: StaleTail, rate: u64, kind: Kind) -> Self {
-        Interface {
+        LiveInterface {
             label,
             described,
             parser: Parser::new(),
@@ -197,19 +198,19 @@ impl Interface {
 
     /// A datagram network interface (no line rate: held-back bytes wait the plain quiet
     /// gap) named `label` in messages and counters alike.
-    pub fn network(label: String, rate: u64, kind: Kind) -> Self {
-        Interface::new(label.clone(), label, StaleTail::new(None), rate, kind)
+    pub(crate) fn network(label: String, rate: u64, kind: Kind) -> Self {
+        LiveInterface::new(label.clone(), label, StaleTail::new(None), rate, kind)
     }
 
     /// A TCP interface (a client, a server or one of its connections) named `label`:
     /// its held-back bytes wait for the rest of their frame as long as the connection
     /// lasts.
-    pub fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
-        Interface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
+    pub(crate) fn reliable_stream(label: String, rate: u64, kind: Kind) -> Self {
+        LiveInterface::new(label.clone(), label, StaleTail::reliable(), rate, kind)
     }
 
     /// The connection state of an interface that opens (streams, datagram clients).
-    pub fn connection(&self) -> Option<&Connection> {
+    pub(crate) fn connection(&self) -> Option<&Connection> {
         match &self.kind {
             Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
                 Some(connection)
@@ -219,7 +220,7 @@ impl Interface {
     }
 
     /// The connection state, mutable.
-    pub fn connection_mut(&mut self) -> Option<&mut Connection> {
+    pub(crate) fn connection_mut(&mut self) -> Option<&mut Connection> {
         match &mut self.kind {
             Kind::Stream { connection, .. } | Kind::DatagramClient { connection, .. } => {
                 Some(connection)
@@ -229,7 +230,7 @@ impl Interface {
     }
 
     /// The one link of a client or stream interface.
-    pub fn own_link(&self) -> Option<LinkId> {
+    pub(crate) fn own_link(&self) -> Option<LinkId> {
         match self.kind {
             Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => Some(link),
             Kind::Datagram { .. } | Kind::Listener { .. } => None,
@@ -237,7 +238,7 @@ impl Interface {
     }
 
     /// True while bytes can flow (servers always; others once open).
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         self.connection().is_none_or(Connection::is_open)
     }
 }

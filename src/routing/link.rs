@@ -7,7 +7,7 @@ use std::time::Duration;
 use super::counters::{LinkCounters, LinkReport};
 use super::pool::AddressPool;
 use super::queue::PacketQueue;
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// Identifies a link for as long as it exists; never reused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -65,7 +65,7 @@ impl Link {
     }
 
     /// The link's id.
-    pub fn id(&self) -> LinkId {
+    pub(crate) fn id(&self) -> LinkId {
         self.id
     }
 
@@ -85,7 +85,7 @@ impl Link {
 
     /// True if broadcasts reach this link before it has learned any address (see
     /// [`LinkKind::Client`]; accepted connections likewise).
-    pub fn reaches_the_unknown(&self) -> bool {
+    pub(crate) fn reaches_the_unknown(&self) -> bool {
         matches!(self.kind, LinkKind::Client | LinkKind::Connection)
     }
 
@@ -105,7 +105,7 @@ impl Link {
     }
 
     /// This link's line of the counters report.
-    pub fn report(&self) -> LinkReport<'_> {
+    pub(crate) fn report(&self) -> LinkReport<'_> {
         LinkReport {
             name: &self.name,
             counters: self.counters,

@@ -19,11 +19,11 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// Bucket depth by default: the largest MAVLink frame (a signed v2 frame with a 255-byte
 /// payload), since the router sends one frame per datagram.
-pub const DEFAULT_BURST: u32 = 280;
+pub(crate) const DEFAULT_BURST: u32 = 280;
 
 const NANOS_PER_SEC: u128 = 1_000_000_000;
 
@@ -58,7 +58,7 @@ impl Pacer {
     }
 
     /// A pacer for `bits_per_second` (0 = unlimited) whose bucket holds `burst_bytes`.
-    pub fn with_burst(bits_per_second: u64, burst_bytes: u32) -> Self {
+    pub(crate) fn with_burst(bits_per_second: u64, burst_bytes: u32) -> Self {
         Pacer {
             rate: bits_per_second,
             burst: burst_bytes,
@@ -67,7 +67,7 @@ impl Pacer {
     }
 
     /// The configured rate in bits per second (0 = unlimited).
-    pub fn rate(&self) -> u64 {
+    pub(crate) fn rate(&self) -> u64 {
         self.rate
     }
 

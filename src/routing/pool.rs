@@ -2,11 +2,11 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
 use crate::address::Address;
+use crate::time::Timestamp;
 
 /// How long a learned address stays without being heard from (the original's 120 s).
-pub const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);
+pub(crate) const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);
 
 #[derive(Debug, Clone, Copy)]
 struct Entry {
@@ -44,7 +44,7 @@ impl AddressPool {
 
     /// Records that `address` sent something at `now`. True if it was not present (never
     /// seen, or expired): the "new component" case.
-    pub fn learn(&mut self, address: Address, now: Timestamp) -> bool {
+    pub(crate) fn learn(&mut self, address: Address, now: Timestamp) -> bool {
         match self.entries.iter().position(|e| e.address == address) {
             Some(i) => {
                 let was_live = self.live(&self.entries[i], now);
@@ -65,7 +65,7 @@ impl AddressPool {
     }
 
     /// Adds `address` permanently. True if it was not present.
-    pub fn preload(&mut self, address: Address) -> bool {
+    pub(crate) fn preload(&mut self, address: Address) -> bool {
         match self.entries.iter_mut().find(|e| e.address == address) {
             Some(e) => {
                 e.last_seen = None;
@@ -83,7 +83,7 @@ impl AddressPool {
 
     /// True if `address` is present at `now`.
     #[inline]
-    pub fn contains(&self, address: Address, now: Timestamp) -> bool {
+    pub(crate) fn contains(&self, address: Address, now: Timestamp) -> bool {
         self.entries
             .iter()
             .any(|e| e.address == address && self.live(e, now))
@@ -113,7 +113,7 @@ impl AddressPool {
     }
 
     /// How long learned addresses last.
-    pub fn expiry(&self) -> Duration {
+    pub(crate) fn expiry(&self) -> Duration {
         self.expiry
     }
 }

@@ -1,10 +1,8 @@
 //! A link's outgoing packets: bounded, highest priority first, FIFO among equals.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::sync::Arc;
 
-/// The exact bytes of one received frame, shared by every link that forwards it.
-pub type Packet = Arc<[u8]>;
+pub use crate::wire::Packet;
 
 /// Bytes one link's queue holds by default: 4 MiB.
 ///
@@ -12,18 +10,18 @@ pub type Packet = Arc<[u8]>;
 /// 256 kbit/s link drains them — two senders of 5,000 ENCAPSULATED_DATA each, a load the
 /// original's unbounded queues delivered whole — so that configurations that worked with
 /// the original keep working. [`DEFAULT_TOTAL_CAPACITY`] bounds all links together.
-pub const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
+pub(crate) const DEFAULT_CAPACITY: usize = 4 * 1024 * 1024;
 
 /// Bytes all queues together hold by default: 16 MiB, so that no number of links (a
 /// flood of spoofed UDP senders included) takes the router's memory beyond a few tens of
 /// MiB, while four links can each hold a full [`DEFAULT_CAPACITY`] at once. (Queues
 /// charge every packet to every queue holding it, though they share its bytes, so the
 /// memory they really use is at most this.)
-pub const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
+pub(crate) const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
 
 /// Bytes charged per packet on top of its length (shared-buffer header and queue slot),
 /// so that a flood of tiny packets is bounded too.
-pub const PACKET_OVERHEAD: usize = 32;
+pub(crate) const PACKET_OVERHEAD: usize = 32;
 
 /// What [`PacketQueue::push`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,7 +46,7 @@ struct Bucket {
 /// Bounded priority queue of packets.
 ///
 /// Order: higher priority first; equal priorities in arrival order. Bound: the sum of
-/// packet lengths plus [`PACKET_OVERHEAD`] each never exceeds the capacity. When a new
+/// packet lengths plus `PACKET_OVERHEAD` each never exceeds the capacity. When a new
 /// packet does not fit, the lowest-priority, oldest packets are dropped until it does;
 /// if it still could not fit after dropping everything of its own priority or lower, the
 /// new packet itself is dropped instead (a new packet never displaces a higher-priority
@@ -65,7 +63,7 @@ pub struct PacketQueue {
 }
 
 impl PacketQueue {
-    /// An empty queue holding at most `capacity` bytes (see [`PACKET_OVERHEAD`]).
+    /// An empty queue holding at most `capacity` bytes (see `PACKET_OVERHEAD`).
     pub fn new(capacity: usize) -> Self {
         PacketQueue {
             buckets: BTreeMap::new(),
@@ -108,13 +106,13 @@ impl PacketQueue {
     }
 
     /// The priority of the packet [`PacketQueue::drop_lowest`] would drop.
-    pub fn lowest_priority(&self) -> Option<i32> {
+    pub(crate) fn lowest_priority(&self) -> Option<i32> {
         self.buckets.first_key_value().map(|(p, _)| *p)
     }
 
     /// Drops the oldest packet of the lowest priority (counted as a drop) to make room
     /// elsewhere. Returns the bytes it freed (0 if the queue was empty).
-    pub fn drop_lowest(&mut self) -> usize {
+    pub(crate) fn drop_lowest(&mut self) -> usize {
         let before = self.bytes;
         if self.take(true).is_some() {
             self.dropped += 1;
@@ -124,12 +122,12 @@ impl PacketQueue {
 
     /// Counts a packet that was dropped before it reached this queue (the shared
     /// capacity was used up by packets of higher priority).
-    pub fn count_drop(&mut self) {
+    pub(crate) fn count_drop(&mut self) {
         self.dropped += 1;
     }
 
-    /// What `packet` counts against a capacity: its length plus [`PACKET_OVERHEAD`].
-    pub fn cost_of(packet: &[u8]) -> usize {
+    /// What `packet` counts against a capacity: its length plus `PACKET_OVERHEAD`.
+    pub(crate) fn cost_of(packet: &[u8]) -> usize {
         packet.len().saturating_add(PACKET_OVERHEAD)
     }
 
@@ -183,7 +181,7 @@ impl PacketQueue {
 
     /// Changes the capacity (a reload's `queue` block): packets beyond a smaller one
     /// stay queued, and the next push makes room as usual.
-    pub fn set_capacity(&mut self, capacity: usize) {
+    pub(crate) fn set_capacity(&mut self, capacity: usize) {
         self.capacity = capacity;
     }
 
@@ -198,7 +196,7 @@ impl PacketQueue {
     }
 
     /// The most bytes the queue has held at once, since creation.
-    pub fn high_water(&self) -> usize {
+    pub(crate) fn high_water(&self) -> usize {
         self.high_water
     }
 }

@@ -4,15 +4,15 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
+use crate::time::Timestamp;
 
 /// First wait before trying again to open a missing device.
-pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
+pub(crate) const FIRST_BACKOFF: Duration = Duration::from_millis(100);
 /// Longest wait between attempts to open a missing device.
-pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+pub(crate) const MAX_BACKOFF: Duration = Duration::from_secs(2);
 /// Longest wait between attempts of a TCP client to reach its server, so that it is
 /// connected again within a second of the server's return.
-pub const MAX_RECONNECT_WAIT: Duration = Duration::from_secs(1);
+pub(crate) const MAX_RECONNECT_WAIT: Duration = Duration::from_secs(1);
 
 /// The state of a stream's connection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,12 +41,12 @@ impl Connection {
     }
 
     /// True when open.
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         *self == Connection::Open
     }
 
     /// When an attempt is due and not yet asked for.
-    pub fn retry_at(&self) -> Option<Timestamp> {
+    pub(crate) fn retry_at(&self) -> Option<Timestamp> {
         match *self {
             Connection::Closed {
                 retry_at,
@@ -58,7 +58,7 @@ impl Connection {
     }
 
     /// If an attempt is due at `now`, marks it asked for and returns true.
-    pub fn ask_if_due(&mut self, now: Timestamp) -> bool {
+    pub(crate) fn ask_if_due(&mut self, now: Timestamp) -> bool {
         match self {
             Connection::Closed {
                 retry_at, asked, ..
@@ -72,7 +72,7 @@ impl Connection {
 
     /// The attempt failed at `now`: wait the backoff, then double it up to `cap`.
     /// Returns true if this is the first failure of an outage (the one worth saying).
-    pub fn failed(&mut self, now: Timestamp, cap: Duration) -> bool {
+    pub(crate) fn failed(&mut self, now: Timestamp, cap: Duration) -> bool {
         let backoff = match *self {
             Connection::Closed { backoff, .. } => backoff,
             Connection::Open => FIRST_BACKOFF,
@@ -87,7 +87,7 @@ impl Connection {
 
     /// The device was lost at `now` (it was open): try again after `first_wait`, then
     /// with the backoff (failures after a loss are not said again: the loss was).
-    pub fn lost(&mut self, now: Timestamp, first_wait: Duration) {
+    pub(crate) fn lost(&mut self, now: Timestamp, first_wait: Duration) {
         *self = Connection::Closed {
             retry_at: now + first_wait,
             backoff: FIRST_BACKOFF * 2,

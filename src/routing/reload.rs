@@ -26,7 +26,7 @@ use crate::stats::rule_text::rule_text;
 /// What an interface block stands for on this machine: two blocks with the same identity
 /// (and the same rank among blocks of that identity) are the same interface.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
-pub enum Identity {
+pub(crate) enum Identity {
     /// A UDP server bound at this address and port.
     UdpServer(SocketAddr),
     /// A UDP client of this remote (as written).
@@ -41,7 +41,7 @@ pub enum Identity {
 
 impl Identity {
     /// The identity of `iface`.
-    pub fn of(iface: &Interface) -> Identity {
+    pub(crate) fn of(iface: &Interface) -> Identity {
         match iface {
             Interface::Udp(u) => match &u.connect {
                 None => Identity::UdpServer(SocketAddr::new(u.local_address(), u.port)),
@@ -58,7 +58,7 @@ impl Identity {
 
 /// A setting that changes without closing the socket or device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InPlace {
+pub(crate) enum InPlace {
     /// `max_bitrate`: the pacer takes the new rate.
     MaxBitrate,
     /// The signing key or `allow_unsigned`.
@@ -69,7 +69,7 @@ pub enum InPlace {
 
 impl InPlace {
     /// The setting's name as the configuration writes it.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             InPlace::MaxBitrate => "max_bitrate",
             InPlace::Signing => "signing",
@@ -80,7 +80,7 @@ impl InPlace {
 
 /// What happens to an interface present in both configurations.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Fate {
+pub(crate) enum Fate {
     /// Nothing changed: untouched.
     Kept,
     /// These settings change in place.
@@ -91,7 +91,7 @@ pub enum Fate {
 
 /// An interface of the old configuration matched to one of the new.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Matched {
+pub(crate) struct Matched {
     /// Its index in the old configuration's interfaces.
     pub old: usize,
     /// Its index in the new configuration's interfaces.
@@ -102,7 +102,7 @@ pub struct Matched {
 
 /// What a reload does to the interfaces.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct InterfacePlan {
+pub(crate) struct InterfacePlan {
     /// Interfaces in both configurations, in the new configuration's order.
     pub matched: Vec<Matched>,
     /// Old indices of the interfaces the new configuration no longer has.
@@ -112,11 +112,11 @@ pub struct InterfacePlan {
 }
 
 /// One interface block and the key its `signing_key` file held.
-pub type Keyed<'a> = (&'a Interface, Option<&'a SigningKey>);
+pub(crate) type Keyed<'a> = (&'a Interface, Option<&'a SigningKey>);
 
 /// Matches the interfaces of `old` to those of `new` (each with its key) by
 /// [`Identity`] and decides the [`Fate`] of each.
-pub fn plan_interfaces(old: &[Keyed<'_>], new: &[Keyed<'_>]) -> InterfacePlan {
+pub(crate) fn plan_interfaces(old: &[Keyed<'_>], new: &[Keyed<'_>]) -> InterfacePlan {
     // Identity → old indices with it, in file order (taken from the front).
     let mut by_identity: HashMap<Identity, Vec<usize>> = HashMap::new();
     for (i, (iface, _)) in old.iter().enumerate() {
@@ -193,7 +193,7 @@ fn fate(old: Keyed<'_>, new: Keyed<'_>) -> Fate {
 
 /// What a reload does to the filter.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RulePlan {
+pub(crate) struct RulePlan {
     /// The chains, default chain and default action are the same: the filter and its
     /// memo stay as they are.
     pub unchanged: bool,
@@ -213,7 +213,7 @@ pub struct RulePlan {
 /// Compares the filters of `old` and `new`: a rule is the same rule when its chain has
 /// the same name and it reads the same (the `n`th such rule of a chain matches the
 /// `n`th).
-pub fn plan_rules(old: &Config, new: &Config) -> RulePlan {
+pub(crate) fn plan_rules(old: &Config, new: &Config) -> RulePlan {
     let unchanged = old.chains == new.chains
         && old.default_chain == new.default_chain
         && old.default_action == new.default_action;

@@ -19,18 +19,18 @@ pub struct Remotes {
 impl Remotes {
     /// The link of `address`, if it has one.
     #[inline]
-    pub fn link_of(&self, address: SocketAddr) -> Option<LinkId> {
+    pub(crate) fn link_of(&self, address: SocketAddr) -> Option<LinkId> {
         self.by_address.get(&address).copied()
     }
 
     /// Records that `address` is link `id` (its first valid frame just arrived).
-    pub fn insert(&mut self, address: SocketAddr, id: LinkId) {
+    pub(crate) fn insert(&mut self, address: SocketAddr, id: LinkId) {
         self.by_address.insert(address, id);
         self.order.push((id, address));
     }
 
     /// Forgets link `id`; returns its address if it was one of these remotes.
-    pub fn remove(&mut self, id: LinkId) -> Option<SocketAddr> {
+    pub(crate) fn remove(&mut self, id: LinkId) -> Option<SocketAddr> {
         let i = self.order.iter().position(|(l, _)| *l == id)?;
         let (_, address) = self.order.remove(i);
         self.by_address.remove(&address);
@@ -44,7 +44,7 @@ impl Remotes {
     }
 
     /// Every link with its address, in creation order.
-    pub fn iter(&self) -> impl Iterator<Item = (LinkId, SocketAddr)> + '_ {
+    pub(crate) fn iter(&self) -> impl Iterator<Item = (LinkId, SocketAddr)> + '_ {
         self.order.iter().copied()
     }
 
@@ -61,7 +61,7 @@ impl Remotes {
     /// The first link, in round-robin order from the current turn, for which `ready`
     /// holds. One scan at most; the turn stays where it is until [`Remotes::end_turn`].
     #[inline]
-    pub fn next_ready(&self, mut ready: impl FnMut(LinkId) -> bool) -> Option<Turn> {
+    pub(crate) fn next_ready(&self, mut ready: impl FnMut(LinkId) -> bool) -> Option<Turn> {
         let n = self.order.len();
         (0..n).find_map(|k| {
             let index = (self.next_turn + k) % n;
@@ -76,7 +76,7 @@ impl Remotes {
 
     /// Passes the turn to the link after the one that just had `turn`.
     #[inline]
-    pub fn end_turn(&mut self, turn: &Turn) {
+    pub(crate) fn end_turn(&mut self, turn: &Turn) {
         self.next_turn = (turn.index + 1) % self.order.len().max(1);
     }
 }

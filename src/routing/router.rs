@@ -12,11 +12,11 @@ use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
 use super::queue::{DEFAULT_CAPACITY, DEFAULT_TOTAL_CAPACITY, Packet, PacketQueue, PushOutcome};
 use super::sources::{Sequences, SourceTable};
-use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::Config;
 use crate::dialect::SETUP_SIGNING_ID;
 use crate::filter::{CacheStats, Filter, FilterCounts, cache};
+use crate::time::Timestamp;
 use crate::wire::Frame;
 
 /// Tunables of a [`Router`]; `Default` gives the original's behaviour.
@@ -24,9 +24,9 @@ use crate::wire::Frame;
 pub struct RouterOptions {
     /// How long a learned address lasts without traffic (120 s).
     pub expiry: Duration,
-    /// Bytes each link's queue may hold ([`DEFAULT_CAPACITY`]).
+    /// Bytes each link's queue may hold (`DEFAULT_CAPACITY`).
     pub queue_capacity: usize,
-    /// Bytes all queues together may hold ([`DEFAULT_TOTAL_CAPACITY`]). A
+    /// Bytes all queues together may hold (`DEFAULT_TOTAL_CAPACITY`). A
     /// packet that would pass it first pushes out the oldest packets of the lowest
     /// priority queued anywhere (from the link holding the most, among equals) until an
     /// eighth of it is free, or is dropped itself if everything queued ranks above it.
@@ -112,7 +112,7 @@ impl Router {
     /// Replaces the filter with `config`'s chains and default action (a reload): the
     /// verdict memo starts empty, and the per-rule counts start from `counts` (by the
     /// new filter's flat rule numbers: what the same rules counted before).
-    pub fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
+    pub(crate) fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
         let mut filter = Filter::with_cache_slots(config, self.options.cache_slots);
         filter.carry_counts(counts);
         self.filter = filter;
@@ -121,7 +121,7 @@ impl Router {
     /// Sets the queue bounds (a reload's `queue` block): every link's queue, and the
     /// total, take the new sizes at once; a queue above its new bound keeps what it holds
     /// and makes room at its next packet.
-    pub fn set_queue_bounds(&mut self, link_bytes: usize, total_bytes: usize) {
+    pub(crate) fn set_queue_bounds(&mut self, link_bytes: usize, total_bytes: usize) {
         self.options.queue_capacity = link_bytes;
         self.options.total_queue_capacity = total_bytes;
         for link in &mut self.links {
@@ -179,21 +179,21 @@ impl Router {
     }
 
     /// Adds the link of a UDP or TCP client named `name` (see [`LinkKind::Client`]).
-    pub fn add_client_link(&mut self, name: &str, now: Timestamp) -> LinkId {
+    pub(crate) fn add_client_link(&mut self, name: &str, now: Timestamp) -> LinkId {
         let i = self.add_link(name, LinkKind::Client, now);
         self.links[i].id()
     }
 
     /// Adds a link for a connection a server accepted (`tcp:a.b.c.d:port`); it lives until
     /// [`Router::remove_link`].
-    pub fn add_connection_link(&mut self, name: &str, now: Timestamp) -> LinkId {
+    pub(crate) fn add_connection_link(&mut self, name: &str, now: Timestamp) -> LinkId {
         let i = self.add_link(name, LinkKind::Connection, now);
         self.links[i].id()
     }
 
     /// Removes link `id` and what its queue holds (a closed connection). Returns false if
     /// there is no such link.
-    pub fn remove_link(&mut self, id: LinkId) -> bool {
+    pub(crate) fn remove_link(&mut self, id: LinkId) -> bool {
         let Some(i) = self.index(id) else {
             return false;
         };
@@ -204,7 +204,7 @@ impl Router {
 
     /// Drops everything queued for link `id` (counted as dropped), e.g. telemetry that
     /// went stale while its connection was down. Returns how many packets were dropped.
-    pub fn clear_queue(&mut self, id: LinkId) -> u64 {
+    pub(crate) fn clear_queue(&mut self, id: LinkId) -> u64 {
         let Some(i) = self.index(id) else {
             return 0;
         };
@@ -395,7 +395,7 @@ impl Router {
     }
 
     /// The counters of link `id`, to note what its transport did.
-    pub fn counters_mut(&mut self, id: LinkId) -> Option<&mut LinkCounters> {
+    pub(crate) fn counters_mut(&mut self, id: LinkId) -> Option<&mut LinkCounters> {
         let i = self.index(id)?;
         Some(&mut self.links[i].counters)
     }
@@ -444,17 +444,17 @@ impl Router {
     }
 
     /// Per-rule hit counts of the filter (see [`Filter::counts`]).
-    pub fn filter_counts(&self) -> FilterCounts {
+    pub(crate) fn filter_counts(&self) -> FilterCounts {
         self.filter.counts()
     }
 
-    /// Frames per (source, message type) (bounded; see [`SourceTable`]).
-    pub fn sources_mut(&mut self) -> &mut SourceTable {
+    /// Frames per (source, message type) (bounded; see `SourceTable`).
+    pub(crate) fn sources_mut(&mut self) -> &mut SourceTable {
         &mut self.sources
     }
 
-    /// Sequence gaps per source (bounded; see [`Sequences`]).
-    pub fn sequences(&self) -> &Sequences {
+    /// Sequence gaps per source (bounded; see `Sequences`).
+    pub(crate) fn sequences(&self) -> &Sequences {
         &self.sequences
     }
 }

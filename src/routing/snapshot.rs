@@ -5,10 +5,9 @@ use std::collections::HashMap;
 
 use slab::Slab;
 
-use super::interface::{Interface, Kind};
+use super::interface::{Kind, LiveInterface};
 use super::link::LinkId;
 use super::router::Router;
-use super::time::Timestamp;
 use crate::config::{Config, DefaultAction};
 use crate::dialect;
 use crate::stats::rule_text::rule_text;
@@ -16,18 +15,19 @@ use crate::stats::{
     ChainStats, DefaultActionStats, Drops, History, InterfaceStats, LinkStats, RuleStats,
     SequenceStats, SigningStats, SourceStats, StatsSnapshot,
 };
+use crate::time::Timestamp;
 
 /// What the statistics need of the configuration, kept from the start: chain names and
 /// rule texts (in the filter's flat rule order), and the default action.
 #[derive(Debug, Clone, Default)]
-pub struct RuleBook {
+pub(crate) struct RuleBook {
     chains: Vec<(String, Vec<String>)>,
     default_action: &'static str,
 }
 
 impl RuleBook {
     /// The chains and default action of `config`.
-    pub fn new(config: &Config) -> Self {
+    pub(crate) fn new(config: &Config) -> Self {
         RuleBook {
             chains: config
                 .chains
@@ -46,11 +46,11 @@ impl RuleBook {
 }
 
 /// Everything [`snapshot`] reads.
-pub struct Sources<'a> {
+pub(crate) struct Sources<'a> {
     /// The router.
     pub router: &'a mut Router,
     /// The interfaces.
-    pub interfaces: &'a Slab<Interface>,
+    pub interfaces: &'a Slab<LiveInterface>,
     /// Chain names and rule texts.
     pub rules: &'a RuleBook,
     /// The rate history (updated).
@@ -58,7 +58,7 @@ pub struct Sources<'a> {
 }
 
 /// The snapshot at `now` (rates over the time since the previous snapshot).
-pub fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
+pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
     let now_s = now.since_start().as_secs_f64();
     let dt = src.history.interval(now_s);
     let mut interfaces: Vec<InterfaceStats> = Vec::new();

@@ -24,11 +24,11 @@ use std::hash::{BuildHasherDefault, Hasher};
 use crate::address::Address;
 
 /// Entries of the (source, message) table.
-pub const SOURCE_TABLE_ENTRIES: usize = 4096;
+pub(crate) const SOURCE_TABLE_ENTRIES: usize = 4096;
 /// Ways of each set of the (source, message) table.
 const WAYS: usize = 4;
 /// Most source addresses whose sequence numbers are followed.
-pub const MAX_SEQUENCE_SOURCES: usize = 4096;
+pub(crate) const MAX_SEQUENCE_SOURCES: usize = 4096;
 
 /// One (source, message) pair's counts.
 #[derive(Debug, Clone, Copy, Default)]
@@ -79,7 +79,7 @@ impl Default for SourceTable {
 impl SourceTable {
     /// Counts one frame with `message_id` from `source`.
     #[inline]
-    pub fn count(&mut self, source: Address, message_id: u32) {
+    pub(crate) fn count(&mut self, source: Address, message_id: u32) {
         self.seen += 1;
         let key = 1 << 40 | u64::from(message_id & 0xFF_FFFF) << 16 | u64::from(source.to_u16());
         let sets = SOURCE_TABLE_ENTRIES / WAYS;
@@ -113,13 +113,13 @@ impl SourceTable {
     }
 
     /// Pairs that lost their place to a new pair of their set.
-    pub fn evicted(&self) -> u64 {
+    pub(crate) fn evicted(&self) -> u64 {
         self.evicted
     }
 
     /// Every pair, with its rate over the `interval_s` seconds since the last sample
     /// (when `interval_s` is positive; else the rates of the last sample stay).
-    pub fn sample(&mut self, interval_s: f64) -> Vec<SourceCount> {
+    pub(crate) fn sample(&mut self, interval_s: f64) -> Vec<SourceCount> {
         let mut out = Vec::new();
         for e in self.entries.iter_mut().filter(|e| e.key != 0) {
             if interval_s > 0.0 {
@@ -152,7 +152,7 @@ pub struct SequenceCount {
 /// A hasher for small integer keys: one multiply (the keys are not chosen to collide
 /// by anyone who could gain from it; the table is bounded anyway).
 #[derive(Debug, Default, Clone, Copy)]
-pub struct IntHasher(u64);
+pub(crate) struct IntHasher(u64);
 
 impl Hasher for IntHasher {
     fn finish(&self) -> u64 {
@@ -180,7 +180,7 @@ pub struct Sequences {
 impl Sequences {
     /// Notes a frame from `source` with sequence number `seq`.
     #[inline]
-    pub fn count(&mut self, source: Address, seq: u8) {
+    pub(crate) fn count(&mut self, source: Address, seq: u8) {
         let len = self.by_source.len();
         let s = match self.by_source.get_mut(&source.to_u16()) {
             Some(s) => s,
@@ -209,12 +209,12 @@ impl Sequences {
     }
 
     /// Frames of sources beyond the table's bound (not followed).
-    pub fn untracked(&self) -> u64 {
+    pub(crate) fn untracked(&self) -> u64 {
         self.untracked
     }
 
     /// Every followed source with its counts, by address.
-    pub fn all(&self) -> Vec<(Address, SequenceCount)> {
+    pub(crate) fn all(&self) -> Vec<(Address, SequenceCount)> {
         let mut v: Vec<_> = self
             .by_source
             .iter()

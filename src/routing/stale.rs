@@ -15,12 +15,12 @@
 
 use std::time::Duration;
 
-use super::time::Timestamp;
-use crate::wire::frame::MAX_FRAME_LEN;
+use crate::time::Timestamp;
+use crate::wire::header::MAX_FRAME_LEN;
 
 /// Quiet time beyond a largest frame's transmission time after which held-back bytes
 /// are judged.
-pub const STALE_GAP: Duration = Duration::from_millis(100);
+pub(crate) const STALE_GAP: Duration = Duration::from_millis(100);
 
 /// The quiet-line rule of one byte stream or datagram interface.
 #[derive(Debug, Clone, Copy)]
@@ -46,7 +46,7 @@ impl StaleTail {
     }
 
     /// The rule for a reliable byte stream (TCP): held-back bytes never go stale.
-    pub fn reliable() -> Self {
+    pub(crate) fn reliable() -> Self {
         StaleTail {
             patience: None,
             last_rx: Timestamp::ZERO,
@@ -55,13 +55,13 @@ impl StaleTail {
 
     /// Notes that bytes arrived at `now`.
     #[inline]
-    pub fn received(&mut self, now: Timestamp) {
+    pub(crate) fn received(&mut self, now: Timestamp) {
         self.last_rx = now;
     }
 
     /// When `pending` held-back bytes become stale (None when nothing is held back, or
     /// on a reliable stream).
-    pub fn deadline(&self, pending: usize) -> Option<Timestamp> {
+    pub(crate) fn deadline(&self, pending: usize) -> Option<Timestamp> {
         let patience = self.patience?;
         (pending > 0).then(|| self.last_rx + patience)
     }

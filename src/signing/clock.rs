@@ -4,7 +4,8 @@
 
 use std::time::Duration;
 
-use crate::routing::Timestamp;
+use crate::time::Timestamp;
+use crate::wire::signing::SigningTime;
 
 /// 2015-01-01 00:00:00 UTC in seconds since the Unix epoch.
 pub const EPOCH_2015_UNIX_SECS: u64 = 1_420_070_400;
@@ -13,18 +14,18 @@ pub const EPOCH_2015_UNIX_SECS: u64 = 1_420_070_400;
 pub const UNITS_PER_SEC: u64 = 100_000;
 
 /// The largest signature timestamp (48 bits).
-pub const MAX_TIMESTAMP: u64 = (1 << 48) - 1;
+pub const MAX_TIMESTAMP: SigningTime = (1 << 48) - 1;
 
 /// Signature time of a wall-clock reading given as time since the Unix epoch (0 before
 /// 2015).
-pub fn units_from_unix(since_unix_epoch: Duration) -> u64 {
+pub(crate) fn units_from_unix(since_unix_epoch: Duration) -> SigningTime {
     let since_2015 = since_unix_epoch.saturating_sub(Duration::from_secs(EPOCH_2015_UNIX_SECS));
     let units = since_2015.as_micros() / 10;
     u64::try_from(units).unwrap_or(u64::MAX).min(MAX_TIMESTAMP)
 }
 
 /// Signature time units in `d`.
-pub fn units_of(d: Duration) -> u64 {
+pub(crate) fn units_of(d: Duration) -> u64 {
     u64::try_from(d.as_micros() / 10).unwrap_or(u64::MAX)
 }
 
@@ -32,25 +33,25 @@ pub fn units_of(d: Duration) -> u64 {
 #[derive(Debug, Clone, Default)]
 pub struct SigningClock {
     /// The last wall-clock reading: when (core time) and what (signature time).
-    reading: Option<(Timestamp, u64)>,
+    reading: Option<(Timestamp, SigningTime)>,
     /// Nothing earlier than this is told (the last timestamp issued or restored).
-    floor: u64,
+    floor: SigningTime,
 }
 
 impl SigningClock {
     /// Notes that at `now` the wall clock read `units` (signature time).
-    pub fn set_wall(&mut self, now: Timestamp, units: u64) {
+    pub(crate) fn set_wall(&mut self, now: Timestamp, units: SigningTime) {
         self.reading = Some((now, units));
     }
 
     /// Raises the floor to `units` (a timestamp from a previous run).
-    pub fn raise_floor(&mut self, units: u64) {
+    pub(crate) fn raise_floor(&mut self, units: SigningTime) {
         self.floor = self.floor.max(units.min(MAX_TIMESTAMP));
     }
 
     /// Signature time at `now`: the wall clock advanced by core time since it was read,
     /// never below the floor.
-    pub fn now(&self, now: Timestamp) -> u64 {
+    pub(crate) fn now(&self, now: Timestamp) -> SigningTime {
         let wall = self.reading.map_or(0, |(at, units)| {
             units.saturating_add(units_of(now.saturating_since(at)))
         });
@@ -59,7 +60,7 @@ impl SigningClock {
 
     /// A timestamp for a signature the router makes at `now`: the clock's time, or one
     /// past the last one issued, whichever is later (strictly increasing).
-    pub fn issue(&mut self, now: Timestamp) -> u64 {
+    pub(crate) fn issue(&mut self, now: Timestamp) -> SigningTime {
         let t = self
             .now(now)
             .max(self.floor.saturating_add(1))
@@ -69,7 +70,7 @@ impl SigningClock {
     }
 
     /// The floor to save: no timestamp issued so far is above it.
-    pub fn floor(&self) -> u64 {
+    pub(crate) fn floor(&self) -> SigningTime {
         self.floor
     }
 }

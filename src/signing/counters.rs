@@ -23,7 +23,7 @@ pub struct SigningCounters {
 
 impl SigningCounters {
     /// Counts a refusal.
-    pub fn refused(&mut self, why: Refusal) {
+    pub(crate) fn refused(&mut self, why: Refusal) {
         let n = match why {
             Refusal::BadSignature => &mut self.bad_signature,
             Refusal::Replayed => &mut self.replayed,
@@ -39,7 +39,7 @@ impl SigningCounters {
     }
 
     /// True if nothing was counted.
-    pub fn is_zero(&self) -> bool {
+    pub(crate) fn is_zero(&self) -> bool {
         *self == SigningCounters::default()
     }
 }

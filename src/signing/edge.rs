@@ -9,8 +9,9 @@ use super::sign::{sign, wants_signature};
 use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
 use super::streams::{StreamId, StreamTable};
 use super::verify::{Admission, Check, Refusal};
-use crate::routing::{Packet, Timestamp};
-use crate::wire::Frame;
+use crate::time::Timestamp;
+use crate::wire::signing::SigningTime;
+use crate::wire::{Frame, Packet};
 
 /// The signing settings of one interface with a key, and what it counted.
 #[derive(Debug, Clone)]
@@ -30,7 +31,7 @@ pub struct Edge {
 impl Edge {
     /// A fresh edge with the same settings and nothing counted (for a connection a keyed
     /// server accepts).
-    pub fn fresh_copy(&self) -> Edge {
+    pub(crate) fn fresh_copy(&self) -> Edge {
         Edge {
             counters: SigningCounters::default(),
             said: Vec::new(),
@@ -39,7 +40,7 @@ impl Edge {
     }
 
     /// True the first time `why` is seen here.
-    pub fn first_time(&mut self, why: Refusal) -> bool {
+    pub(crate) fn first_time(&mut self, why: Refusal) -> bool {
         if self.said.contains(&why) {
             return false;
         }
@@ -60,7 +61,7 @@ pub struct Signing {
 impl Signing {
     /// The slot of `key`, added if new (interfaces with the same key share its streams,
     /// so a frame taken in on one cannot be replayed on another).
-    pub fn add_key(&mut self, key: SigningKey) -> usize {
+    pub(crate) fn add_key(&mut self, key: SigningKey) -> usize {
         if let Some(i) = self.keys.iter().position(|k| *k == key) {
             return i;
         }
@@ -69,17 +70,17 @@ impl Signing {
     }
 
     /// True when some interface has a key.
-    pub fn has_keys(&self) -> bool {
+    pub(crate) fn has_keys(&self) -> bool {
         !self.keys.is_empty()
     }
 
     /// Notes the wall clock: at `now` it read `units` of signature time.
-    pub fn set_wall_clock(&mut self, now: Timestamp, units: u64) {
+    pub(crate) fn set_wall_clock(&mut self, now: Timestamp, units: SigningTime) {
         self.clock.set_wall(now, units);
     }
 
     /// The signing clock at `now` (10 µs units since 2015).
-    pub fn clock(&self, now: Timestamp) -> u64 {
+    pub(crate) fn clock(&self, now: Timestamp) -> SigningTime {
         self.clock.now(now)
     }
 
@@ -116,7 +117,7 @@ impl Signing {
     /// Takes over a saved state: the clock floor, and the streams of keys still in use
     /// (raised by [`UNCLEAN_MARGIN`] if the file was not written at a clean exit).
     /// Returns how many streams were taken.
-    pub fn restore(&mut self, state: &SavedState) -> usize {
+    pub(crate) fn restore(&mut self, state: &SavedState) -> usize {
         self.clock.raise_floor(state.clock);
         let margin = if state.clean { 0 } else { UNCLEAN_MARGIN };
         let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
@@ -139,7 +140,7 @@ impl Signing {
 
     /// The state to save, if it changed since the last call (or always when `clean`:
     /// the router is stopping and nothing is accepted after it).
-    pub fn take_state(&mut self, clean: bool) -> Option<SavedState> {
+    pub(crate) fn take_state(&mut self, clean: bool) -> Option<SavedState> {
         if !self.has_keys() || !(self.changed || clean) {
             return None;
         }

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 /// The largest key file read (4 KiB): a key is 64 hexadecimal digits and a passphrase a
 /// line of text, so anything larger is a mistaken path (a log, a disk image), not a key.
-pub const KEY_FILE_LIMIT: u64 = 4096;
+pub(crate) const KEY_FILE_LIMIT: u64 = 4096;
 
 /// A MAVLink 2 signing key. Its `Debug` output does not show the key.
 #[derive(Clone, PartialEq, Eq)]
@@ -68,7 +68,7 @@ impl SigningKey {
     /// Like ssh with a private key, the file is refused when its permissions let anyone
     /// but its owner read or write it (any of the mode bits `0o077`): the key would be
     /// as good as public. A file that is missing, not a regular file (after following
-    /// symlinks), larger than [`KEY_FILE_LIMIT`], unreadable or empty is an error too; a
+    /// symlinks), larger than `KEY_FILE_LIMIT`, unreadable or empty is an error too; a
     /// device or FIFO is never read. No error ever shows what the file holds.
     pub fn read_file(path: &Path) -> Result<SigningKey, KeyError> {
         SigningKey::read_file_trusting(path, None)
@@ -187,7 +187,7 @@ impl KeyError {
     }
 
     /// What is wrong, in one line.
-    pub fn summary(&self) -> String {
+    pub(crate) fn summary(&self) -> String {
         let file = match &self.path {
             Some(p) => format!("key file {}", p.display()),
             None => "key file".to_string(),
@@ -205,7 +205,7 @@ impl KeyError {
     }
 
     /// What to do about it, when there is something to say.
-    pub fn hint(&self) -> Option<String> {
+    pub(crate) fn hint(&self) -> Option<String> {
         let path = self
             .path
             .as_ref()

@@ -103,7 +103,7 @@ impl StreamTable {
 
     /// Records `timestamp` as the last of `id` (never lowering it), forgetting the least
     /// recently used streams first if the table is full.
-    pub fn record(&mut self, id: StreamId, timestamp: u64) {
+    pub(crate) fn record(&mut self, id: StreamId, timestamp: u64) {
         self.uses += 1;
         let used = self.uses;
         let key = id.packed();
@@ -148,7 +148,7 @@ impl StreamTable {
     }
 
     /// Every stream and its last timestamp, in a fixed order (for saving).
-    pub fn snapshot(&self) -> Vec<(StreamId, u64)> {
+    pub(crate) fn snapshot(&self) -> Vec<(StreamId, u64)> {
         let mut all: Vec<_> = self
             .entries
             .iter()

@@ -28,7 +28,7 @@ pub struct History {
 impl History {
     /// Seconds since the previous sample (0 at the first), and notes `now_s` as the
     /// latest sample time.
-    pub fn interval(&mut self, now_s: f64) -> f64 {
+    pub(crate) fn interval(&mut self, now_s: f64) -> f64 {
         let dt = self.last_s.map_or(0.0, |t| (now_s - t).max(0.0));
         self.last_s = Some(now_s);
         dt
@@ -37,7 +37,7 @@ impl History {
     /// Fills the rates and history of `links` from their counters over the last `dt`
     /// seconds (a link new since the last sample counts from zero), and forgets links
     /// that are gone. With `dt` zero (the first sample) the rates are zero.
-    pub fn sample(&mut self, dt: f64, links: &mut [LinkStats]) {
+    pub(crate) fn sample(&mut self, dt: f64, links: &mut [LinkStats]) {
         let mut next = HashMap::with_capacity(links.len());
         for l in links.iter_mut() {
             let mut h = self.links.remove(&l.id).unwrap_or_default();

@@ -1,14 +1,15 @@
 //! Statistics of a running router, sans-IO: the [`StatsSnapshot`] the routing core takes
 //! about once a second ([`crate::routing::Engine::stats`]), the one-second rate history
-//! of each link ([`history`]), and the snapshot rendered as the `/stats` JSON ([`json`])
-//! and as the Prometheus text format of `/metrics` ([`prometheus`]). The HTTP server
+//! of each link (`history`), and the snapshot rendered as the `/stats` JSON ([`json`])
+//! and as the Prometheus text format of `/metrics` (`prometheus`). The HTTP server
 //! that serves them is `src/io/stats_server.rs`.
 
-pub mod history;
+pub(crate) mod history;
+#[doc(hidden)]
 pub mod json;
-pub mod prometheus;
-pub mod rule_text;
-pub mod snapshot;
+pub(crate) mod prometheus;
+pub(crate) mod rule_text;
+pub(crate) mod snapshot;
 
 pub use history::{HISTORY_LEN, History};
 pub use snapshot::{

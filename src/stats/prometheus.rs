@@ -8,10 +8,10 @@ use super::snapshot::{LinkStats, StatsSnapshot};
 use crate::recording::RecorderStats;
 
 /// The content type of the text format.
-pub const CONTENT_TYPE: &str = "text/plain; version=0.0.4; charset=utf-8";
+pub(crate) const CONTENT_TYPE: &str = "text/plain; version=0.0.4; charset=utf-8";
 
 /// `value` escaped for a label value.
-pub fn escape_label(value: &str) -> String {
+pub(crate) fn escape_label(value: &str) -> String {
     let mut s = String::with_capacity(value.len());
     for c in value.chars() {
         match c {
@@ -69,7 +69,7 @@ impl Out {
 }
 
 /// `snapshot` as Prometheus text.
-pub fn render(s: &StatsSnapshot) -> String {
+pub(crate) fn render(s: &StatsSnapshot) -> String {
     let mut o = Out(String::with_capacity(4096));
     o.family(
         "mavtables_uptime_seconds",

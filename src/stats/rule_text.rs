@@ -8,7 +8,7 @@ use crate::config::{Action, Config, Rule};
 use crate::dialect::{UNKNOWN_ID, UNKNOWN_NAME};
 
 /// The text of `rule` in `config` (whose chains name `call` and `goto` targets).
-pub fn rule_text(config: &Config, rule: &Rule) -> String {
+pub(crate) fn rule_text(config: &Config, rule: &Rule) -> String {
     let chain = |id: crate::config::ChainId| {
         config
             .chains
@@ -53,7 +53,7 @@ pub fn rule_text(config: &Config, rule: &Rule) -> String {
 }
 
 /// `subnet` in its shortest form.
-pub fn subnet_text(subnet: Subnet) -> String {
+pub(crate) fn subnet_text(subnet: Subnet) -> String {
     let a = subnet.address;
     let m = subnet.mask;
     if m == 0xFFFF {

@@ -69,7 +69,7 @@ pub struct Drops {
 
 impl Drops {
     /// The reasons with their names, in the JSON's order.
-    pub fn named(&self) -> [(&'static str, u64); 11] {
+    pub(crate) fn named(&self) -> [(&'static str, u64); 11] {
         [
             ("filter_rejected", self.filter_rejected),
             ("no_route", self.no_route),

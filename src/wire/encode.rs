@@ -7,7 +7,7 @@ use crate::dialect::{self, MessageInfo};
 
 use super::crc::frame_checksum;
 use super::header::{CHECKSUM_START, HeaderRepr, INCOMPAT_SIGNED, Version};
-use super::signing::{SecretKey, compute_signature};
+use super::signing::{SecretKey, SigningTime, compute_signature};
 
 /// Header fields chosen by the sender.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -22,13 +22,13 @@ pub struct Header {
 
 /// How to sign a MAVLink 2 frame.
 #[derive(Debug, Clone, Copy)]
-pub struct Signing<'k> {
+pub struct SignWith<'k> {
     /// Secret key.
     pub key: &'k SecretKey,
     /// Link id to put in the signature block.
     pub link_id: u8,
     /// Timestamp (10 µs units since 2015-01-01), 48 bits.
-    pub timestamp: u64,
+    pub timestamp: SigningTime,
 }
 
 /// Why a frame could not be built.
@@ -128,7 +128,7 @@ pub fn encode_v2(
     header: Header,
     id: u32,
     payload: &[u8],
-    signing: Option<Signing<'_>>,
+    signing: Option<SignWith<'_>>,
     out: &mut Vec<u8>,
 ) -> Result<(), EncodeError> {
     let info = lookup(id, payload)?;

@@ -6,14 +6,9 @@ use std::fmt;
 use crate::address::Address;
 use crate::dialect::{Dialect, MessageInfo, UNKNOWN_ID};
 
-use super::check::{Candidate, Checks, check_candidate};
-use super::header::{HeaderRepr, Layout};
-use super::summary::PacketSummary;
-// Names that lived here before `header` and `check` existed stay reachable by this path.
-pub use super::check::Rejection;
-pub use super::header::{
-    CHECKSUM_LEN, HEADER_LEN_V1, HEADER_LEN_V2, INCOMPAT_SIGNED, MAGIC_V1, MAGIC_V2, MAX_FRAME_LEN,
-    SIGNATURE_LEN, Version,
+use super::check::{Candidate, Checks, Rejection, check_candidate};
+use super::header::{
+    HEADER_LEN_V1, HeaderRepr, INCOMPAT_SIGNED, Layout, MAGIC_V2, SIGNATURE_LEN, Version,
 };
 
 /// Why [`Frame::parse_exact`] refused a byte string.
@@ -144,13 +139,13 @@ impl<'a> Frame<'a> {
 
     /// Incompatibility flags (always 0 for v1).
     #[inline]
-    pub fn incompat_flags(&self) -> u8 {
+    pub(crate) fn incompat_flags(&self) -> u8 {
         self.layout().read_incompat_flags(self.bytes)
     }
 
     /// Compatibility flags (always 0 for v1).
     #[inline]
-    pub fn compat_flags(&self) -> u8 {
+    pub(crate) fn compat_flags(&self) -> u8 {
         self.layout().read_compat_flags(self.bytes)
     }
 
@@ -276,13 +271,6 @@ impl fmt::Debug for Frame<'_> {
     }
 }
 
-/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
-impl fmt::Display for Frame<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        fmt::Display::fmt(&PacketSummary::of(self), f)
-    }
-}
-
 /// The 13-byte signature block at the end of a signed MAVLink 2 frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Signature<'a> {
@@ -303,7 +291,7 @@ impl<'a> Signature<'a> {
     }
 
     /// The 6-byte signature value (first 6 bytes of the SHA-256 digest).
-    pub fn value(&self) -> &'a [u8] {
+    pub(crate) fn value(&self) -> &'a [u8] {
         &self.block[7..13]
     }
 }
@@ -313,6 +301,7 @@ mod tests {
     use super::*;
     use crate::wire::crc::frame_checksum;
     use crate::wire::encode::{Header, encode_v1, encode_v2};
+    use crate::wire::header::MAGIC_V1;
 
     fn v2(id: u32, payload: &[u8]) -> Vec<u8> {
         let mut out = Vec::new();

@@ -8,24 +8,24 @@
 //! 13-byte signature block.
 
 /// First byte of a MAVLink 1 frame.
-pub const MAGIC_V1: u8 = 0xFE;
+pub(crate) const MAGIC_V1: u8 = 0xFE;
 /// First byte of a MAVLink 2 frame.
-pub const MAGIC_V2: u8 = 0xFD;
+pub(crate) const MAGIC_V2: u8 = 0xFD;
 /// Header length of a MAVLink 1 frame, magic byte included.
-pub const HEADER_LEN_V1: usize = V1.header_len;
+pub(crate) const HEADER_LEN_V1: usize = V1.header_len;
 /// Header length of a MAVLink 2 frame, magic byte included.
-pub const HEADER_LEN_V2: usize = V2.header_len;
+pub(crate) const HEADER_LEN_V2: usize = V2.header_len;
 /// Length of the checksum that follows the payload.
-pub const CHECKSUM_LEN: usize = 2;
+pub(crate) const CHECKSUM_LEN: usize = 2;
 /// The checksum covers the frame from this offset (the byte after the magic byte) to
 /// the end of the payload.
-pub const CHECKSUM_START: usize = 1;
+pub(crate) const CHECKSUM_START: usize = 1;
 /// Length of a MAVLink 2 signature block (link id, timestamp, signature).
-pub const SIGNATURE_LEN: usize = 13;
+pub(crate) const SIGNATURE_LEN: usize = 13;
 /// The only incompatibility flag MAVLink 2 defines: the frame carries a signature.
-pub const INCOMPAT_SIGNED: u8 = 0x01;
+pub(crate) const INCOMPAT_SIGNED: u8 = 0x01;
 /// Longest possible frame: signed v2 with a 255-byte payload.
-pub const MAX_FRAME_LEN: usize = HEADER_LEN_V2 + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
+pub(crate) const MAX_FRAME_LEN: usize = HEADER_LEN_V2 + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
 
 /// Where the header fields of one MAVLink version sit, as byte offsets from the
 /// frame's first (magic) byte.
@@ -54,7 +54,7 @@ pub struct Layout {
 }
 
 /// The MAVLink 1 header: magic, len, seq, sysid, compid, msgid (8 bits).
-pub const V1: Layout = Layout {
+pub(crate) const V1: Layout = Layout {
     magic: MAGIC_V1,
     header_len: 6,
     payload_len: 1,
@@ -69,7 +69,7 @@ pub const V1: Layout = Layout {
 
 /// The MAVLink 2 header: magic, len, incompat flags, compat flags, seq, sysid, compid,
 /// msgid (24 bits).
-pub const V2: Layout = Layout {
+pub(crate) const V2: Layout = Layout {
     magic: MAGIC_V2,
     header_len: 10,
     payload_len: 1,
@@ -155,7 +155,7 @@ pub enum Version {
 impl Version {
     /// The version a frame starting with `byte` has, if `byte` is a magic byte.
     #[inline]
-    pub const fn from_magic(byte: u8) -> Option<Version> {
+    pub(crate) const fn from_magic(byte: u8) -> Option<Version> {
         match byte {
             MAGIC_V1 => Some(Version::V1),
             MAGIC_V2 => Some(Version::V2),
@@ -165,7 +165,7 @@ impl Version {
 
     /// Where this version's header fields sit.
     #[inline]
-    pub const fn layout(self) -> &'static Layout {
+    pub(crate) const fn layout(self) -> &'static Layout {
         match self {
             Version::V1 => &V1,
             Version::V2 => &V2,
@@ -178,12 +178,12 @@ impl Version {
     }
 
     /// Header length (magic byte included) of this version.
-    pub const fn header_len(self) -> usize {
+    pub(crate) const fn header_len(self) -> usize {
         self.layout().header_len
     }
 
     /// The major version number: 1 or 2 (as in the log text's `(v2.0)`).
-    pub const fn number(self) -> u8 {
+    pub(crate) const fn number(self) -> u8 {
         match self {
             Version::V1 => 1,
             Version::V2 => 2,

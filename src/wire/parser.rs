@@ -578,7 +578,7 @@ mod tests {
             component: 10,
         };
         encode_v1(header, 0, &[0, 0, 0, 0, 6, 8, 0, 0, 3], &mut stream).expect("encodable");
-        let signing = crate::wire::encode::Signing {
+        let signing = crate::wire::encode::SignWith {
             key: &key,
             link_id: 1,
             timestamp: 42,

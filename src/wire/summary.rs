@@ -27,7 +27,7 @@ pub struct PacketSummary {
 impl PacketSummary {
     /// The summary of `frame`.
     #[inline]
-    pub fn of(frame: &Frame<'_>) -> Self {
+    pub(crate) fn of(frame: &Frame<'_>) -> Self {
         PacketSummary {
             name: frame.name(),
             message_id: frame.message_id(),
@@ -49,6 +49,13 @@ impl fmt::Display for PacketSummary {
             write!(f, " to {to}")?;
         }
         write!(f, " (v{}.0)", self.version.number())
+    }
+}
+
+/// The log text of a packet: `NAME (#id) from S.C[ to S.C] (vN.0)` (see [`PacketSummary`]).
+impl fmt::Display for Frame<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(&PacketSummary::of(self), f)
     }
 }
 

@@ -22,7 +22,6 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::thread;
 use std::time::{Duration, Instant};
 
 use super::process::Proc;
@@ -182,27 +181,22 @@ impl MavProxy {
 /// server, before MAVProxy connects: MAVProxy exits if its first connect fails).
 pub fn wait_tcp_listening(port: u16, timeout: Duration) {
     let wanted = format!(":{port:04X}");
-    let deadline = Instant::now() + timeout;
-    loop {
-        let listening = ["/proc/net/tcp", "/proc/net/tcp6"].iter().any(|f| {
-            std::fs::read_to_string(f)
-                .unwrap_or_default()
-                .lines()
-                .skip(1)
-                .any(|l| {
-                    let cols: Vec<&str> = l.split_whitespace().collect();
-                    cols.len() > 3 && cols[1].ends_with(&wanted) && cols[3] == "0A"
-                })
-        });
-        if listening {
-            return;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "nothing listens on TCP port {port}"
-        );
-        thread::sleep(Duration::from_millis(5));
-    }
+    super::eventually(
+        format!("something listening on TCP port {port}"),
+        timeout,
+        || {
+            ["/proc/net/tcp", "/proc/net/tcp6"].iter().any(|f| {
+                std::fs::read_to_string(f)
+                    .unwrap_or_default()
+                    .lines()
+                    .skip(1)
+                    .any(|l| {
+                        let cols: Vec<&str> = l.split_whitespace().collect();
+                        cols.len() > 3 && cols[1].ends_with(&wanted) && cols[3] == "0A"
+                    })
+            })
+        },
+    );
 }
 
 /// What a finished session printed.

@@ -10,8 +10,63 @@ pub mod process;
 pub mod router;
 pub mod stats_router;
 
+use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// What a poll of [`eventually`] says: done (with a value), or not yet (and maybe why).
+pub trait Polled {
+    /// The value [`eventually`] returns once done.
+    type Output;
+    /// `Ok` when done; `Err` with what to say if the time runs out now.
+    fn done(self) -> Result<Self::Output, Option<String>>;
+}
+
+impl Polled for bool {
+    type Output = ();
+    fn done(self) -> Result<(), Option<String>> {
+        if self { Ok(()) } else { Err(None) }
+    }
+}
+
+impl<T> Polled for Option<T> {
+    type Output = T;
+    fn done(self) -> Result<T, Option<String>> {
+        self.ok_or(None)
+    }
+}
+
+impl<T> Polled for Result<T, String> {
+    type Output = T;
+    fn done(self) -> Result<T, Option<String>> {
+        self.map_err(Some)
+    }
+}
+
+/// Polls `poll` every 5 ms until it is done (`true`, `Some`, `Ok`) and returns its
+/// value; panics saying `what` did not happen within `timeout` (with the last `Err`'s
+/// text). The tests' one deadline loop.
+pub fn eventually<P: Polled>(
+    what: impl Display,
+    timeout: Duration,
+    mut poll: impl FnMut() -> P,
+) -> P::Output {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let why = match poll().done() {
+            Ok(value) => return value,
+            Err(why) => why,
+        };
+        if Instant::now() >= deadline {
+            match why {
+                Some(why) => panic!("{what}: not within {timeout:?}; {why}"),
+                None => panic!("{what}: not within {timeout:?}"),
+            }
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
 
 /// Path of a fixture under `tests/data/`.
 pub fn data(rel: &str) -> PathBuf {

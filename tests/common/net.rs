@@ -104,16 +104,9 @@ pub fn free_tcp_port() -> u16 {
 
 /// Connects to the router's TCP server at `to`, retrying until it listens.
 pub fn connect(to: &str) -> TcpStream {
-    let deadline = Instant::now() + 10 * SECOND;
-    loop {
-        match TcpStream::connect(to) {
-            Ok(s) => return s,
-            Err(e) => {
-                assert!(Instant::now() < deadline, "{to}: {e}");
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        }
-    }
+    super::eventually(format!("a connection to {to}"), 10 * SECOND, || {
+        TcpStream::connect(to).map_err(|e| format!("{to}: {e}"))
+    })
 }
 
 /// One link's line of the counters report.
@@ -263,14 +256,4 @@ pub fn status_bytes(pid: u32, field: &str) -> u64 {
         .find(|l| l.starts_with(&format!("{field}:")))
         .unwrap_or_else(|| panic!("no {field} in /proc/{pid}/status"));
     numbers(line)[0] * 1024
-}
-
-/// Waits (at most `timeout`) until `check` holds, polling every few milliseconds;
-/// panics with `what` if it never does.
-pub fn wait_until(what: &str, timeout: Duration, mut check: impl FnMut() -> bool) {
-    let deadline = Instant::now() + timeout;
-    while !check() {
-        assert!(Instant::now() < deadline, "{what}: not within {timeout:?}");
-        std::thread::sleep(Duration::from_millis(5));
-    }
 }

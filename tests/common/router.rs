@@ -247,17 +247,19 @@ impl Router {
     }
 
     fn wait_bound(&mut self, port: u16) {
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !udp_port_bound(port) {
-            if let Ok(Some(status)) = self.guard.child().try_wait() {
-                panic!(
-                    "mavtables exited ({status}) before binding port {port}: {}",
-                    self.err.rest(Duration::from_secs(1)).join("\n")
-                );
-            }
-            assert!(Instant::now() < deadline, "port {port} never bound");
-            thread::sleep(Duration::from_millis(5));
-        }
+        super::eventually(
+            format!("port {port} bound"),
+            Duration::from_secs(10),
+            || {
+                if let Ok(Some(status)) = self.guard.child().try_wait() {
+                    panic!(
+                        "mavtables exited ({status}) before binding port {port}: {}",
+                        self.err.rest(Duration::from_secs(1)).join("\n")
+                    );
+                }
+                udp_port_bound(port)
+            },
+        );
     }
 
     /// The next log line containing `pattern`.

@@ -1,4 +1,4 @@
-//! Helpers of the signing tests (`tests/signing_peers.rs`, `tests/signing_attacks.rs`):
+//! Helpers of the signing tests (`tests/e2e/signing_peers.rs`, `tests/signing_attacks.rs`):
 //! keys and key files, the router's signing clock, signed frames made with the crate's
 //! encoder, the pymavlink signing peer (`tests/py/signing_peer.py`) and signing vehicle
 //! (`tests/py/signing_vehicle.py`), MAVProxy with extra options, and the signing part of
@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use mavtables::wire::encode::{Header, Signing, encode_v1, encode_v2};
+use mavtables::wire::encode::{Header, SignWith, encode_v1, encode_v2};
 use sha2::{Digest, Sha256};
 
 use crate::common::mavproxy::mavproxy_command;
@@ -86,7 +86,7 @@ pub fn signed(
         },
         id,
         payload,
-        Some(Signing {
+        Some(SignWith {
             key,
             link_id,
             timestamp,

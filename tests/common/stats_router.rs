@@ -6,7 +6,8 @@ use std::time::Duration;
 use mavtables::commands::stats::{Endpoint, fetch};
 use serde_json::Value;
 
-use super::net::{free_tcp_port, wait_until};
+use super::eventually;
+use super::net::free_tcp_port;
 use super::router::{Router, Scratch};
 
 /// A router running `config` plus a `stats` block on a free port of 127.0.0.1; returns
@@ -15,7 +16,7 @@ pub fn start(scratch: &Scratch, config: &str) -> (Router, u16) {
     let port = free_tcp_port();
     let config = format!("{config}\nstats {{ address 127.0.0.1; port {port}; }}\n");
     let router = Router::start(scratch, &config, 0);
-    wait_until(
+    eventually(
         "the statistics endpoint answers",
         Duration::from_secs(10),
         || fetch(&endpoint(port)).is_ok(),
@@ -36,7 +37,7 @@ pub fn stats(port: u16) -> Value {
 /// Waits (at most 15 s) until every link's rates are back to zero: the figures then no
 /// longer change while nothing is sent.
 pub fn wait_quiet(port: u16) {
-    wait_until("every rate back to 0", Duration::from_secs(15), || {
+    eventually("every rate back to 0", Duration::from_secs(15), || {
         let s = stats(port);
         s["links"].as_array().is_some_and(|links| {
             links.iter().all(|l| {

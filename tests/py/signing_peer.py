@@ -1,5 +1,5 @@
 """A pymavlink peer that signs and checks MAVLink 2 signatures, for the signing tests
-(tests/signing_peers.rs). It is independent of the router: pymavlink's own signing
+(tests/e2e/signing_peers.rs). It is independent of the router: pymavlink's own signing
 (`mav.signing`) signs what it sends and checks what it receives, and every signed frame
 received is also checked here explicitly with hashlib, so a frame the router signed is
 verified by code that shares nothing with it.

@@ -1,7 +1,7 @@
 """tests/py/vehicle.py with MAVLink 2 signing: the same simulated quadrotor (HEARTBEATs,
 300 parameters, COMMAND_LONG, FTP NAKs), but it signs everything it sends with KEY and
 refuses every frame that is not signed with KEY (pymavlink's allow_unsigned_callback
-says no), for the ground station sessions of tests/signing_peers.rs.
+says no), for the ground station sessions of tests/e2e/signing_peers.rs.
 
 usage:
   signing_vehicle.py LINK --key HEX [--link-id N] [--params N] [--sys S] [--comp C]

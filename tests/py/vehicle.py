@@ -1,5 +1,5 @@
 """A simulated vehicle for the end-to-end tests: the autopilot a ground station talks to
-through the router (tests/peers_mavproxy.rs drives MAVProxy against it).
+through the router (tests/e2e/peers_mavproxy.rs drives MAVProxy against it).
 
 usage:
   vehicle.py LINK [--params N] [--sys S] [--comp C]

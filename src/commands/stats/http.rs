@@ -12,7 +12,7 @@ const MAX_RESPONSE: usize = 16 << 20;
 
 /// `GET path` from `authority` (`HOST:PORT`, IPv6 in brackets), the whole exchange
 /// within `timeout`; the body of a `200` answer, else one line saying what went wrong.
-pub fn get(authority: &str, path: &str, timeout: Duration) -> Result<Vec<u8>, String> {
+pub(crate) fn get(authority: &str, path: &str, timeout: Duration) -> Result<Vec<u8>, String> {
     let deadline = Instant::now() + timeout;
     let addrs: Vec<SocketAddr> = authority
         .to_socket_addrs()
@@ -139,7 +139,7 @@ fn complete_length(raw: &[u8]) -> Option<usize> {
 }
 
 /// The body of a complete answer, if its status is 200.
-pub fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
+pub(crate) fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
     let head = match head(raw) {
         Ok(Some(head)) => head,
         Ok(None) if raw.is_empty() => return Err("closed the connection without answering".into()),

@@ -22,7 +22,7 @@ const DROP_REASONS: &[(&str, &str)] = &[
 ];
 
 /// The whole text for the statistics `stats` fetched from `source` (a URL).
-pub fn render(stats: &Value, source: &str) -> String {
+pub(crate) fn render(stats: &Value, source: &str) -> String {
     let mut out = Vec::new();
     out.push(format!(
         "mavtables at {source}, up {}",

@@ -3,7 +3,7 @@
 
 /// How a column's cells line up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Align {
+pub(crate) enum Align {
     /// Numbers: padded on the left.
     Right,
     /// Text: padded on the right (the last column is never padded).
@@ -12,14 +12,14 @@ pub enum Align {
 
 /// A table: a header row and rows of cells, laid out by [`Table::lines`].
 #[derive(Debug, Clone)]
-pub struct Table {
+pub(crate) struct Table {
     columns: Vec<(String, Align)>,
     rows: Vec<Vec<String>>,
 }
 
 impl Table {
     /// An empty table with these column headers and alignments.
-    pub fn new(columns: &[(&str, Align)]) -> Self {
+    pub(crate) fn new(columns: &[(&str, Align)]) -> Self {
         Table {
             columns: columns.iter().map(|(h, a)| (h.to_string(), *a)).collect(),
             rows: Vec::new(),
@@ -27,13 +27,13 @@ impl Table {
     }
 
     /// Adds a row (missing cells are empty, extra cells are dropped).
-    pub fn row(&mut self, mut cells: Vec<String>) {
+    pub(crate) fn row(&mut self, mut cells: Vec<String>) {
         cells.resize(self.columns.len(), String::new());
         self.rows.push(cells);
     }
 
     /// The column widths: the widest cell or header of each column, in characters.
-    pub fn widths(&self) -> Vec<usize> {
+    pub(crate) fn widths(&self) -> Vec<usize> {
         let mut widths: Vec<usize> = self.columns.iter().map(|(h, _)| width(h)).collect();
         for row in &self.rows {
             for (w, cell) in widths.iter_mut().zip(row) {
@@ -45,7 +45,7 @@ impl Table {
 
     /// The header and every row, each as one line, with the widths `widths` (at least
     /// [`Table::widths`]; several tables given the same widths line up with each other).
-    pub fn lines(&self, widths: &[usize], indent: &str) -> Vec<String> {
+    pub(crate) fn lines(&self, widths: &[usize], indent: &str) -> Vec<String> {
         let header: Vec<String> = self.columns.iter().map(|(h, _)| h.clone()).collect();
         std::iter::once(&header)
             .chain(&self.rows)

@@ -9,13 +9,13 @@ use std::thread;
 use std::time::Instant;
 
 /// Makes the line (ending in a newline) that stands in for `n` dropped lines.
-pub type Notice = fn(n: u64) -> String;
+pub(super) type Notice = fn(n: u64) -> String;
 
 /// Room kept free for the notice once lines have been dropped (longer than any notice).
 const NOTICE_ROOM: usize = 128;
 
 /// One output stream, written by a thread of its own.
-pub struct Sink {
+pub(super) struct Sink {
     shared: Arc<Shared>,
 }
 
@@ -124,7 +124,7 @@ impl Sink {
     /// A sink that keeps at most `capacity` bytes waiting for `out`, written by a thread
     /// called `name`. (The batch being written is apart from these: a stuck reader costs
     /// at most twice `capacity`.) If no thread can be started, everything is dropped.
-    pub fn start<W: Write + Send + 'static>(
+    pub(super) fn start<W: Write + Send + 'static>(
         name: &str,
         capacity: usize,
         out: W,
@@ -147,7 +147,7 @@ impl Sink {
 
     /// Hands `text` (lines ending in newlines) to the writer without waiting for it;
     /// returns how many lines did not fit and were dropped.
-    pub fn push(&self, text: &[u8]) -> u64 {
+    pub(super) fn push(&self, text: &[u8]) -> u64 {
         if text.is_empty() {
             return 0;
         }
@@ -158,7 +158,7 @@ impl Sink {
     }
 
     /// Queues the notice for lines dropped so far now, not only once the next line fits.
-    pub fn note_drops(&self) {
+    pub(super) fn note_drops(&self) {
         let mut state = self.shared.lock();
         state.note_drops();
         self.shared.wake_writer(&state);
@@ -166,7 +166,7 @@ impl Sink {
 
     /// Waits until everything handed over has been written, or `deadline`; returns
     /// whether it was all written.
-    pub fn wait_written(&self, deadline: Instant) -> bool {
+    pub(super) fn wait_written(&self, deadline: Instant) -> bool {
         let mut state = self.shared.lock();
         while !state.all_written() {
             let left = deadline.saturating_duration_since(Instant::now());

@@ -104,7 +104,7 @@ impl Engine {
     /// - the filter (chains, priorities, default action) is replaced at once when it
     ///   changed, with an empty verdict memo; the counts of rules that read the same go
     ///   on;
-    /// - interfaces are matched by identity ([`reload::plan_interfaces`]): an unchanged
+    /// - interfaces are matched by identity (`reload::plan_interfaces`): an unchanged
     ///   one keeps its links, queues, learned addresses, connections, signing streams and
     ///   counters; `max_bitrate`, the signing settings and the server limits change in
     ///   place; a removed or reopened one is forgotten with its links (what was queued

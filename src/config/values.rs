@@ -1,0 +1,43 @@
+//! Checks shared by the statement checkers ([`semantics`](super::semantics) and the
+//! blocks it hands over: [`sockets`](super::sockets), [`stats_block`](super::stats_block),
+//! [`recording`](super::recording)): a number within its range and an interface's
+//! signing settings. A leaf: it imports none of them.
+
+use super::Span;
+use super::ast::{Ast, YesNo};
+use super::diagnostic::Diagnostic;
+use super::model::InterfaceSigning;
+
+/// The signing settings of one interface block from its `signing_key` (the last one
+/// written) and `allow_unsigned` statements (the last one counts); `allow_unsigned`
+/// without a key is an error at the first of them.
+pub(super) fn interface_signing(
+    ast: &Ast<'_>,
+    key_file: Option<Span>,
+    allow_unsigned: &[YesNo],
+) -> Result<Option<InterfaceSigning>, Diagnostic> {
+    match (key_file, allow_unsigned.first()) {
+        (Some(path), _) => Ok(Some(InterfaceSigning {
+            key_file: ast.text(path).to_string(),
+            allow_unsigned: allow_unsigned.last().is_some_and(|v| v.yes),
+        })),
+        (None, None) => Ok(None),
+        (None, Some(first)) => Err(Diagnostic::new(
+            first.keyword,
+            "'allow_unsigned' needs a 'signing_key' in the same block",
+        )
+        .with_note(
+            "only a block with a signing key checks signatures; add 'signing_key PATH;' or leave out 'allow_unsigned'",
+        )),
+    }
+}
+
+/// `text` as a decimal number within `min..=max`, or the error text naming `what`.
+pub(super) fn ranged(text: &str, min: u64, max: u64, what: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(v) if (min..=max).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "{what} ({text}) is outside of the allowed range ({min} - {max})"
+        )),
+    }
+}

@@ -1,0 +1,25 @@
+//! The in-process tests, one binary: the configuration language, the filter, the wire
+//! format, the dialect, signing and the routing core driven on a simulated clock
+//! (`routing`), each file a module. Some check against pymavlink (`common::python`).
+
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../routing/mod.rs"]
+mod routing;
+
+mod config_ast;
+mod config_errors;
+mod config_model;
+mod config_network;
+mod config_props;
+mod dialect_crosscheck;
+mod docs_examples;
+mod filter_memo;
+mod routing_cases;
+mod routing_engine;
+mod routing_queues_props;
+mod routing_scenarios;
+mod routing_signing;
+mod wire_properties;
+mod wire_signing_pymavlink;
+mod wire_vectors;
