@@ -18,6 +18,7 @@ pub mod model;
 pub mod net;
 pub mod parser;
 pub mod printer;
+pub mod rate;
 pub mod record_path;
 pub mod recording;
 pub mod semantics;
@@ -32,6 +33,7 @@ pub use lines::LineIndex;
 pub use model::*;
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
+pub use rate::RateUnit;
 pub use record_path::check_record_path;
 pub use semantics::Loaded;
 

@@ -294,6 +294,7 @@ mod tests {
             action,
             priority: None,
             condition: Condition::default(),
+            rate: None,
         }
     }
 

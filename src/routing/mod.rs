@@ -32,6 +32,7 @@ pub mod link;
 pub mod pacer;
 pub mod pool;
 pub mod queue;
+pub mod rate_limit;
 pub mod reconnect;
 pub mod reload;
 pub mod remotes;

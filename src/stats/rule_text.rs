@@ -24,6 +24,9 @@ pub fn rule_text(config: &Config, rule: &Rule) -> String {
     if let Some(p) = rule.priority {
         s.push_str(&format!(" with priority {p}"));
     }
+    if let Some(r) = rule.rate {
+        s.push_str(&format!(" with rate {r}"));
+    }
     let c = &rule.condition;
     let mut cond = Vec::new();
     match c.signed {
