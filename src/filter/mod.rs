@@ -72,6 +72,9 @@ pub struct Filter {
     traces: Traces,
     /// The rate interval of each rule by flat number; empty when no rule has a rate.
     caps: Box<[Option<Duration>]>,
+    /// The cap of each interned trace (by trace number: that of its deciding rule), so
+    /// that a memoized verdict finds its cap with one load.
+    trace_caps: Vec<Option<Cap>>,
 }
 
 /// The rate intervals of `config`'s rules by flat number; empty when none has a rate.
@@ -97,6 +100,7 @@ impl Filter {
             cache: VerdictCache::new(slots),
             traces: Traces::default(),
             caps: caps_of(config),
+            trace_caps: Vec::new(),
         }
     }
 
@@ -145,11 +149,7 @@ impl Filter {
     ) -> (Verdict, Option<Cap>) {
         if let Some((v, trace)) = self.cache.get_traced(message_id, source, dest, signed) {
             self.traces.hit(trace, len);
-            let cap = if self.caps.is_empty() {
-                None
-            } else {
-                self.cap(v, self.traces.decider(trace))
-            };
+            let cap = self.trace_caps.get(trace as usize).copied().flatten();
             return (v, cap);
         }
         let v = self.evaluator.evaluate(message_id, source, dest, signed);
@@ -159,24 +159,26 @@ impl Filter {
                 self.traces.hit(trace, len);
                 self.cache
                     .insert_traced(message_id, source, dest, signed, v, trace);
+                if !self.caps.is_empty() && trace as usize == self.trace_caps.len() {
+                    self.trace_caps.push(self.cap(decider));
+                }
             }
             // The trace table is full: counted directly, and walked again next time.
             None => self.traces.hit_direct(matched, decider, len),
         }
-        (v, self.cap(v, decider))
+        let cap = match v {
+            Verdict::Accept(_) => self.cap(decider),
+            Verdict::Reject => None,
+        };
+        (v, cap)
     }
 
-    /// The cap of an accept decided by rule `decider`.
+    /// The cap of rule `decider` (only `accept` rules have one).
     #[inline]
-    fn cap(&self, v: Verdict, decider: Option<u32>) -> Option<Cap> {
+    fn cap(&self, decider: Option<u32>) -> Option<Cap> {
         let rule = decider?;
-        match v {
-            Verdict::Accept(_) => {
-                let interval = (*self.caps.get(rule as usize)?)?;
-                Some(Cap { rule, interval })
-            }
-            Verdict::Reject => None,
-        }
+        let interval = (*self.caps.get(rule as usize)?)?;
+        Some(Cap { rule, interval })
     }
 
     /// Whether any rule has a `with rate`.
