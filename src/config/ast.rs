@@ -263,8 +263,23 @@ pub struct Rule {
     pub action: ActionAst,
     /// The priority number after `with priority`, sign included.
     pub priority: Option<Span>,
+    /// The `with rate N/UNIT` option, if written.
+    pub rate: Option<RateAst>,
     /// The `if` part.
     pub condition: Option<ConditionAst>,
+}
+
+/// A written `rate N/UNIT` (after `with`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RateAst {
+    /// The `rate` keyword.
+    pub keyword: Span,
+    /// The whole value, `N/UNIT`.
+    pub span: Span,
+    /// The number before `/`.
+    pub count: Span,
+    /// The unit after `/`.
+    pub unit: Span,
 }
 
 /// The action of a rule.

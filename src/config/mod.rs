@@ -18,6 +18,7 @@ pub(crate) mod model;
 pub(crate) mod net;
 pub(crate) mod parser;
 pub(crate) mod printer;
+pub(crate) mod rate;
 pub(crate) mod record_path;
 pub(crate) mod recording;
 pub(crate) mod semantics;
@@ -37,6 +38,7 @@ pub use model::{
 };
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
+pub use rate::{Rate, RateUnit};
 pub use record_path::check_record_path;
 pub use semantics::Loaded;
 

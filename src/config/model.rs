@@ -8,6 +8,7 @@ use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
 pub use super::net::{Host, IpRange, Remote};
+pub use super::rate::Rate;
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -459,6 +460,9 @@ pub struct Rule {
     pub priority: Option<i32>,
     /// When the rule applies (the default condition matches every packet).
     pub condition: Condition,
+    /// `with rate R`: at most this many packets the rule accepts pass per destination
+    /// link, source component and message id (`accept` rules only; see [`Rate`]).
+    pub rate: Option<Rate>,
 }
 
 /// The action of a rule.

@@ -528,10 +528,7 @@ impl<'a> Parser<'a> {
             _ => ActionAst::Goto(self.chain_name()?),
         };
         self.c.skip_padding();
-        let priority = match self.c.eat_keyword("with") {
-            Some(_) => Some(self.priority()?),
-            None => None,
-        };
+        let (priority, rate) = self.rule_options()?;
         self.c.skip_padding();
         let condition = match self.c.eat_keyword("if") {
             Some(kw) => Some(self.condition(kw)?),
@@ -542,17 +539,71 @@ impl<'a> Parser<'a> {
             keyword,
             action,
             priority,
+            rate,
             condition,
+        })
+    }
+
+    /// The `with priority N` and `with rate N/UNIT` options of a rule, each at most once,
+    /// in either order.
+    fn rule_options(&mut self) -> Result<(Option<Span>, Option<RateAst>)> {
+        let (mut priority, mut rate) = (None, None);
+        while self.c.eat_keyword("with").is_some() {
+            self.c.skip_padding();
+            match self.c.peek_word() {
+                Some((kw, "rate")) => {
+                    if rate.is_some() {
+                        return Err(Diagnostic::new(kw, "a rule takes one rate"));
+                    }
+                    self.c.word();
+                    rate = Some(self.rate(kw)?);
+                }
+                Some((kw, "priority")) if priority.is_some() => {
+                    return Err(Diagnostic::new(kw, "a rule takes one priority"));
+                }
+                _ => priority = Some(self.priority()?),
+            }
+            self.c.skip_padding();
+        }
+        Ok((priority, rate))
+    }
+
+    /// `N/UNIT` after the `rate` keyword at `keyword` (checked by the semantics).
+    fn rate(&mut self, keyword: Span) -> Result<RateAst> {
+        const NOTE: &str = "write a rate as packets per unit: 2/s, 0.5/s, 10/min or 1/h";
+        self.c.skip_padding();
+        let at = self.c.expected_at();
+        let start = self.c.pos();
+        let count = self.c.take_while(|c| c.is_ascii_digit() || c == '.');
+        if count.is_empty() || !self.c.eat('/') {
+            let span = if count.is_empty() {
+                at
+            } else {
+                self.c.char_span()
+            };
+            return Err(self.value_error(span, "expected a rate").with_note(NOTE));
+        }
+        let unit = self.c.take_while(|c| c.is_ascii_alphanumeric() || c == '_');
+        if unit.is_empty() {
+            return Err(Diagnostic::new(self.c.char_span(), "expected a rate unit").with_note(NOTE));
+        }
+        Ok(RateAst {
+            keyword,
+            span: Span::new(start, unit.end),
+            count,
+            unit,
         })
     }
 
     fn priority(&mut self) -> Result<Span> {
         let at = self.c.expected_at();
         if self.c.eat_keyword("priority").is_none() {
-            return Err(self.value_error(
-                at,
-                "'with' keyword must be followed by the 'priority' keyword",
-            ));
+            return Err(self
+                .value_error(
+                    at,
+                    "'with' keyword must be followed by the 'priority' keyword",
+                )
+                .with_note("or by 'rate': accept with rate 2/s if ATTITUDE;"));
         }
         let at = self.c.expected_at();
         let start = self.c.pos();

@@ -156,8 +156,13 @@ impl Printer<'_, '_> {
             ActionAst::Call(target) => self.node(1, target, "call", Some(target)),
             ActionAst::Goto(target) => self.node(1, target, "goto", Some(target)),
         }
-        if let Some(p) = rule.priority {
-            self.node(2, p, "priority", Some(p));
+        // `with priority` and `with rate` in the order written.
+        let mut options: Vec<(Span, &str)> = Vec::new();
+        options.extend(rule.priority.map(|p| (p, "priority")));
+        options.extend(rule.rate.map(|r| (r.span, "rate")));
+        options.sort_by_key(|(span, _)| span.start);
+        for (span, name) in options {
+            self.node(2, span, name, Some(span));
         }
         if let Some(c) = &rule.condition {
             self.condition(2, c);

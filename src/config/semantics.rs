@@ -9,6 +9,7 @@ use super::ast::{
 use super::claims::Claim;
 use super::diagnostic::Diagnostic;
 use super::lines::LineIndex;
+
 use super::model::*;
 use super::sockets::{self, Kind};
 use super::values::{interface_signing, ranged};
@@ -497,6 +498,7 @@ impl<'a> Checker<'a, '_> {
             None => Some(Condition::default()),
             Some(c) => self.condition(c),
         };
+        let rate = self.rule_rate(rule);
         let action = action?;
         let priority = if action == Action::Reject {
             None
@@ -507,7 +509,29 @@ impl<'a> Checker<'a, '_> {
             action,
             priority,
             condition: condition?,
+            rate: rate?,
         })
+    }
+
+    /// The rate of `with rate N/UNIT`: valid, and on an `accept` rule only.
+    fn rule_rate(&mut self, rule: &ast::Rule) -> Option<Option<Rate>> {
+        let Some(r) = rule.rate else {
+            return Some(None);
+        };
+        if !matches!(rule.action, ActionAst::Accept) {
+            self.error(
+                Diagnostic::new(r.keyword, "a rate applies to 'accept' rules only")
+                    .with_note("put the rate on the 'accept' rule that lets the packets through"),
+            );
+            return None;
+        }
+        match Rate::parse(self.text(r.count), self.text(r.unit)) {
+            Ok(rate) => Some(Some(rate)),
+            Err(message) => {
+                self.error(Diagnostic::new(r.span, message));
+                None
+            }
+        }
     }
 
     fn target(&mut self, from: ChainId, target: Span, goto: bool) -> Option<ChainId> {

@@ -310,6 +310,7 @@ mod tests {
             action,
             priority: None,
             condition: Condition::default(),
+            rate: None,
         }
     }
 

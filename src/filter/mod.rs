@@ -29,6 +29,7 @@ pub(crate) mod trace;
 
 use crate::address::Address;
 use crate::config::Config;
+use std::time::Duration;
 
 pub use cache::{CacheStats, VerdictCache};
 pub use eval::Evaluator;
@@ -53,6 +54,16 @@ impl Verdict {
     }
 }
 
+/// The `with rate` of the rule that accepted a packet: the rule's flat number (for its
+/// `rate_limited` count) and the least time between two packets of one stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Cap {
+    /// The deciding rule's flat number (chains in order, their rules in order).
+    pub rule: u32,
+    /// The interval of its rate.
+    pub interval: Duration,
+}
+
 /// The configuration's chains and default action, with a memo of past verdicts and
 /// per-rule hit counts.
 #[derive(Debug, Clone)]
@@ -60,16 +71,26 @@ pub struct Filter {
     evaluator: Evaluator,
     cache: VerdictCache,
     traces: Traces,
+    /// The rate interval of each rule by flat number; empty when no rule has a rate.
+    caps: Box<[Option<Duration>]>,
+    /// The cap of each interned trace (by trace number: that of its deciding rule), so
+    /// that a memoized verdict finds its cap with one load.
+    trace_caps: Vec<Option<Cap>>,
+}
+
+/// The rate intervals of `config`'s rules by flat number; empty when none has a rate.
+fn caps_of(config: &Config) -> Box<[Option<Duration>]> {
+    let rules = config.chains.iter().flat_map(|c| &c.rules);
+    if rules.clone().all(|r| r.rate.is_none()) {
+        return Box::new([]);
+    }
+    rules.map(|r| r.rate.map(|r| r.interval())).collect()
 }
 
 impl Filter {
     /// Builds the filter of `config` with a cache of [`cache::DEFAULT_SLOTS`] entries.
     pub fn new(config: &Config) -> Self {
-        Filter {
-            evaluator: Evaluator::new(config),
-            cache: VerdictCache::new(cache::DEFAULT_SLOTS),
-            traces: Traces::default(),
-        }
+        Filter::with_cache_slots(config, cache::DEFAULT_SLOTS)
     }
 
     /// Builds the filter of `config` with a cache of (at least) `slots` entries; 0 turns
@@ -79,6 +100,8 @@ impl Filter {
             evaluator: Evaluator::new(config),
             cache: VerdictCache::new(slots),
             traces: Traces::default(),
+            caps: caps_of(config),
+            trace_caps: Vec::new(),
         }
     }
 
@@ -109,9 +132,26 @@ impl Filter {
         signed: bool,
         len: usize,
     ) -> Verdict {
+        self.check_capped(message_id, source, dest, signed, len).0
+    }
+
+    /// As [`Filter::check_len`], with the [`Cap`] of the rule that accepted (`None` for a
+    /// reject, an accept by a rule without `with rate`, or by the default action). The
+    /// cap comes from the rule that decided, so a memoized verdict gives it too; holding
+    /// packets to it is the caller's (it is state that changes with every packet).
+    #[inline]
+    pub fn check_capped(
+        &mut self,
+        message_id: u32,
+        source: Address,
+        dest: Address,
+        signed: bool,
+        len: usize,
+    ) -> (Verdict, Option<Cap>) {
         if let Some((v, trace)) = self.cache.get_traced(message_id, source, dest, signed) {
             self.traces.hit(trace, len);
-            return v;
+            let cap = self.trace_caps.get(trace as usize).copied().flatten();
+            return (v, cap);
         }
         let v = self.evaluator.evaluate(message_id, source, dest, signed);
         let (matched, decider) = self.evaluator.trace();
@@ -120,11 +160,36 @@ impl Filter {
                 self.traces.hit(trace, len);
                 self.cache
                     .insert_traced(message_id, source, dest, signed, v, trace);
+                if !self.caps.is_empty() && trace as usize == self.trace_caps.len() {
+                    self.trace_caps.push(self.cap(decider));
+                }
             }
             // The trace table is full: counted directly, and walked again next time.
             None => self.traces.hit_direct(matched, decider, len),
         }
-        v
+        let cap = match v {
+            Verdict::Accept(_) => self.cap(decider),
+            Verdict::Reject => None,
+        };
+        (v, cap)
+    }
+
+    /// The cap of rule `decider` (only `accept` rules have one).
+    #[inline]
+    fn cap(&self, decider: Option<u32>) -> Option<Cap> {
+        let rule = decider?;
+        let interval = (*self.caps.get(rule as usize)?)?;
+        Some(Cap { rule, interval })
+    }
+
+    /// Whether any rule has a `with rate`.
+    pub fn has_caps(&self) -> bool {
+        !self.caps.is_empty()
+    }
+
+    /// Counts one packet that rule `rule` accepted for a link but its rate held back.
+    pub fn count_rate_limited(&mut self, rule: u32) {
+        self.traces.rate_limited(rule);
     }
 
     /// Per-rule counts (by flat rule number: chains in configuration order, their rules

@@ -26,6 +26,8 @@ pub struct RuleCounts {
     /// How many of them this rule decided (accept and reject rules only; a `call` or
     /// `goto` rule leaves the decision to the rule inside that finally decides).
     pub decided: u64,
+    /// Frames this rule accepted for a link but its `with rate` held back (dropped).
+    pub rate_limited: u64,
 }
 
 /// Per-rule counts and the default action's, as [`Traces::rule_counts`] sums them.
@@ -90,6 +92,23 @@ impl Traces {
         }
     }
 
+    /// The accept or reject rule that decided trace `id` (`None`: the default action, or
+    /// no such trace).
+    #[inline]
+    pub fn decider(&self, id: u32) -> Option<u32> {
+        self.list.get(id as usize).and_then(|t| t.decider)
+    }
+
+    /// Counts one frame that rule `rule` accepted but its rate held back.
+    pub fn rate_limited(&mut self, rule: u32) {
+        let rules = &mut self.direct.rules;
+        let r = rule as usize;
+        if r >= rules.len() {
+            rules.resize(r + 1, RuleCounts::default());
+        }
+        rules[r].rate_limited += 1;
+    }
+
     /// Counts one evaluation of `len` bytes whose trace was not interned.
     pub(crate) fn hit_direct(&mut self, matched: &[u32], decider: Option<u32>, len: usize) {
         let d = &mut self.direct;
@@ -107,6 +126,7 @@ impl Traces {
             r.packets += b.packets;
             r.bytes += b.bytes;
             r.decided += b.decided;
+            r.rate_limited += b.rate_limited;
         }
         d.default_packets += base.default_packets;
         d.default_bytes += base.default_bytes;
@@ -128,6 +148,7 @@ impl Traces {
             r.packets += d.packets;
             r.bytes += d.bytes;
             r.decided += d.decided;
+            r.rate_limited += d.rate_limited;
         }
         c.default_packets += self.direct.default_packets;
         c.default_bytes += self.direct.default_bytes;
@@ -182,17 +203,20 @@ mod tests {
                 RuleCounts {
                     packets: 2,
                     bytes: 30,
-                    decided: 0
+                    decided: 0,
+                    rate_limited: 0
                 },
                 RuleCounts {
                     packets: 1,
                     bytes: 5,
-                    decided: 0
+                    decided: 0,
+                    rate_limited: 0
                 },
                 RuleCounts {
                     packets: 3,
                     bytes: 37,
-                    decided: 3
+                    decided: 3,
+                    rate_limited: 0
                 },
             ]
         );

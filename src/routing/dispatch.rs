@@ -3,7 +3,7 @@
 
 use super::pool::AddressPool;
 use crate::address::Address;
-use crate::filter::{Filter, Verdict};
+use crate::filter::{Cap, Filter, Verdict};
 use crate::time::Timestamp;
 
 /// The outcome of offering a packet to one link.
@@ -12,8 +12,10 @@ pub enum Decision {
     /// Dropped without a log line: the link already reaches the sender (loop prevention),
     /// or the packet targets a system the link does not know.
     Silent,
-    /// The filter accepted it for at least one candidate address; the highest priority.
-    Accept(i32),
+    /// The filter accepted it for at least one candidate address: the highest priority,
+    /// and the `with rate` cap that holds it back (`None` when any accepting rule has no
+    /// rate; else the most generous of their caps).
+    Accept(i32, Option<Cap>),
     /// The filter rejected it for every candidate address, or a broadcast met an empty pool.
     Reject,
 }
@@ -82,15 +84,16 @@ pub(crate) fn decide(
             if !reachable {
                 return Decision::Silent;
             }
-            match filter.check_len(message_id, source, dest, signed, len) {
-                Verdict::Accept(p) => Decision::Accept(p),
-                Verdict::Reject => Decision::Reject,
+            match filter.check_capped(message_id, source, dest, signed, len) {
+                (Verdict::Accept(p), cap) => Decision::Accept(p, cap),
+                (Verdict::Reject, _) => Decision::Reject,
             }
         }
     }
 }
 
-/// Accepted if any candidate accepts, with the highest accepting priority.
+/// Accepted if any candidate accepts, with the highest accepting priority; capped only
+/// when every accepting rule has a rate (by the one of the shortest interval).
 #[inline]
 fn best(
     filter: &mut Filter,
@@ -100,11 +103,25 @@ fn best(
     signed: bool,
     len: usize,
 ) -> Decision {
-    let mut best: Option<i32> = None;
+    let mut best: Option<(i32, Option<Cap>)> = None;
     for dest in candidates {
-        if let Verdict::Accept(p) = filter.check_len(message_id, source, dest, signed, len) {
-            best = Some(best.map_or(p, |b| b.max(p)));
+        if let (Verdict::Accept(p), cap) =
+            filter.check_capped(message_id, source, dest, signed, len)
+        {
+            best = Some(match best {
+                None => (p, cap),
+                Some((b, c)) => (b.max(p), looser(c, cap)),
+            });
         }
     }
-    best.map_or(Decision::Reject, Decision::Accept)
+    best.map_or(Decision::Reject, |(p, c)| Decision::Accept(p, c))
+}
+
+/// The looser of two caps: none beats any, else the shorter interval.
+#[inline]
+fn looser(a: Option<Cap>, b: Option<Cap>) -> Option<Cap> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.interval < a.interval { b } else { a }),
+        _ => None,
+    }
 }

@@ -32,6 +32,7 @@ pub(crate) mod link;
 pub(crate) mod pacer;
 pub(crate) mod pool;
 pub(crate) mod queue;
+pub(crate) mod rate_limit;
 pub(crate) mod reconnect;
 pub(crate) mod reload;
 pub(crate) mod remotes;

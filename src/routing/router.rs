@@ -11,6 +11,7 @@ use super::event::{Event, LinkRef, PacketSummary};
 use super::link::{Link, LinkId, LinkKind};
 use super::pool::DEFAULT_EXPIRY;
 use super::queue::{DEFAULT_CAPACITY, DEFAULT_TOTAL_CAPACITY, Packet, PacketQueue, PushOutcome};
+use super::rate_limit::RateLimiter;
 use super::sources::{Sequences, SourceTable};
 use crate::address::Address;
 use crate::config::Config;
@@ -83,6 +84,8 @@ pub struct Router {
     sources: SourceTable,
     /// Sequence gaps per source.
     sequences: Sequences,
+    /// The schedules of streams capped by a `with rate` rule.
+    limiter: RateLimiter,
 }
 
 impl Router {
@@ -101,6 +104,7 @@ impl Router {
             queued_bytes: 0,
             sources: SourceTable::default(),
             sequences: Sequences::default(),
+            limiter: RateLimiter::default(),
         }
     }
 
@@ -112,10 +116,11 @@ impl Router {
     /// Replaces the filter with `config`'s chains and default action (a reload): the
     /// verdict memo starts empty, and the per-rule counts start from `counts` (by the
     /// new filter's flat rule numbers: what the same rules counted before).
-    pub(crate) fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
+    pub fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
         let mut filter = Filter::with_cache_slots(config, self.options.cache_slots);
         filter.carry_counts(counts);
         self.filter = filter;
+        self.limiter.clear();
     }
 
     /// Sets the queue bounds (a reload's `queue` block): every link's queue, and the
@@ -199,6 +204,7 @@ impl Router {
         };
         let link = self.links.remove(i);
         self.queued_bytes -= link.queue.bytes();
+        self.limiter.forget_link(id);
         true
     }
 
@@ -298,8 +304,16 @@ impl Router {
             );
             match decision {
                 Decision::Silent => {}
-                Decision::Accept(priority) => {
+                Decision::Accept(priority, cap) => {
                     routed = true;
+                    if let Some(cap) = cap
+                        && !self
+                            .limiter
+                            .allow(link.id(), src, message_id, cap.interval, now)
+                    {
+                        self.filter.count_rate_limited(cap.rule);
+                        continue;
+                    }
                     forwarded = true;
                     let bytes = packet
                         .get_or_insert_with(|| Arc::from(frame.as_bytes()))
@@ -435,7 +449,16 @@ impl Router {
             }
         });
         self.queued_bytes -= freed;
+        for &id in &removed {
+            self.limiter.forget_link(id);
+        }
         removed
+    }
+
+    /// Live rate-capped streams forgotten because their table was full (see
+    /// [`RateLimiter`]).
+    pub fn rate_streams_evicted(&self) -> u64 {
+        self.limiter.evicted()
     }
 
     /// Hits and misses of the filter's verdict memo.
@@ -444,7 +467,7 @@ impl Router {
     }
 
     /// Per-rule hit counts of the filter (see [`Filter::counts`]).
-    pub(crate) fn filter_counts(&self) -> FilterCounts {
+    pub fn filter_counts(&self) -> FilterCounts {
         self.filter.counts()
     }
 

@@ -168,6 +168,7 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
                         packets: c.packets,
                         bytes: c.bytes,
                         decided: c.decided,
+                        rate_limited: c.rate_limited,
                     }
                 })
                 .collect(),
@@ -186,6 +187,7 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         })
         .collect();
     let sequence_untracked = src.router.sequences().untracked();
+    let rate_streams_evicted = src.router.rate_streams_evicted();
     let table = src.router.sources_mut();
     let sources_evicted = table.evicted();
     let sources = table
@@ -212,6 +214,7 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         sources,
         sequence_gaps,
         sources_evicted,
+        rate_streams_evicted,
         sequence_untracked,
         queued_bytes: src.router.queued_bytes() as u64,
         filter_cache_hits: cache.hits,

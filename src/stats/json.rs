@@ -43,6 +43,7 @@ pub fn to_value(s: &StatsSnapshot) -> Value {
                 "packets": r.packets,
                 "bytes": r.bytes,
                 "decided": r.decided,
+                "rate_limited": r.rate_limited,
             })).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
         "default_action": {
@@ -57,6 +58,7 @@ pub fn to_value(s: &StatsSnapshot) -> Value {
             "rate_fps": x.rate_fps,
         })).collect::<Vec<_>>(),
         "sources_evicted": s.sources_evicted,
+        "rate_streams_evicted": s.rate_streams_evicted,
         "sequence_gaps": s.sequence_gaps.iter().map(|x| json!({
             "source": x.source,
             "received": x.received,

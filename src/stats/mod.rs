@@ -8,7 +8,8 @@ pub(crate) mod history;
 #[doc(hidden)]
 pub mod json;
 pub(crate) mod prometheus;
-pub(crate) mod rule_text;
+#[doc(hidden)]
+pub mod rule_text;
 pub(crate) mod snapshot;
 
 pub use history::{HISTORY_LEN, History};

@@ -203,7 +203,7 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
         }
     }
     type RuleField = (&'static str, &'static str, fn(&super::RuleStats) -> u64);
-    let per_rule: [RuleField; 3] = [
+    let per_rule: [RuleField; 4] = [
         (
             "mavtables_rule_packets_total",
             "(Packet, destination) evaluations the rule's condition matched.",
@@ -218,6 +218,11 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
             "mavtables_rule_decided_total",
             "Evaluations the rule decided (accept or reject).",
             |r| r.decided,
+        ),
+        (
+            "mavtables_rule_rate_limited_total",
+            "Frames the rule accepted for a link that its `with rate` dropped.",
+            |r| r.rate_limited,
         ),
     ];
     for (name, help, value) in per_rule {
@@ -284,6 +289,16 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
             x.lost,
         );
     }
+    o.family(
+        "mavtables_rate_streams_evicted_total",
+        "counter",
+        "Rate-capped streams forgotten because their bounded table was full.",
+    );
+    o.sample(
+        "mavtables_rate_streams_evicted_total",
+        &[],
+        s.rate_streams_evicted,
+    );
     o.family(
         "mavtables_queued_bytes",
         "gauge",

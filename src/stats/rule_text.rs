@@ -8,7 +8,7 @@ use crate::config::{Action, Config, Rule};
 use crate::dialect::{UNKNOWN_ID, UNKNOWN_NAME};
 
 /// The text of `rule` in `config` (whose chains name `call` and `goto` targets).
-pub(crate) fn rule_text(config: &Config, rule: &Rule) -> String {
+pub fn rule_text(config: &Config, rule: &Rule) -> String {
     let chain = |id: crate::config::ChainId| {
         config
             .chains
@@ -23,6 +23,9 @@ pub(crate) fn rule_text(config: &Config, rule: &Rule) -> String {
     };
     if let Some(p) = rule.priority {
         s.push_str(&format!(" with priority {p}"));
+    }
+    if let Some(r) = rule.rate {
+        s.push_str(&format!(" with rate {r}"));
     }
     let c = &rule.condition;
     let mut cond = Vec::new();

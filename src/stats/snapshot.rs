@@ -24,6 +24,8 @@ pub struct StatsSnapshot {
     pub sequence_gaps: Vec<SequenceStats>,
     /// (Source, message) pairs that lost their place in the bounded table.
     pub sources_evicted: u64,
+    /// Rate-capped streams forgotten because their bounded table was full.
+    pub rate_streams_evicted: u64,
     /// Frames of sources beyond the sequence table's bound.
     pub sequence_untracked: u64,
     /// Bytes all queues hold together.
@@ -171,6 +173,8 @@ pub struct RuleStats {
     pub bytes: u64,
     /// How many of them it decided (accept and reject rules; see `docs/configuration.md`).
     pub decided: u64,
+    /// Frames it accepted for a link that its `with rate` dropped.
+    pub rate_limited: u64,
 }
 
 /// The default action and the evaluations it decided.

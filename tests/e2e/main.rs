@@ -20,6 +20,7 @@ mod file_limits;
 mod forwarding_exact;
 mod log_backpressure;
 mod peers_mavproxy;
+mod rate_caps_e2e;
 mod recording_e2e;
 mod reload_e2e;
 mod router_e2e;
