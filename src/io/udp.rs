@@ -275,9 +275,9 @@ impl Driver for UdpDriver {
                 .map(|t| (on_wire(t.to.unwrap_or(nowhere), v6), &t.packet[..]));
             match sys::send_batch(socket, &mut self.send_scratch, batch, self.gso) {
                 Ok(sent) => {
-                    for t in self.in_flight.drain(..sent.min(wanted)) {
-                        engine.on_sent(&t);
-                    }
+                    let sent_here = sent.min(wanted);
+                    engine.on_sent_batch(self.in_flight.range(..sent_here));
+                    self.in_flight.drain(..sent_here);
                     if sent < wanted {
                         return Progress::Blocked; // the socket buffer is full
                     }
