@@ -82,6 +82,12 @@ pub struct Router {
     sources: SourceTable,
     /// Sequence gaps per source.
     sequences: Sequences,
+    /// By system id, the links that learned (or were preloaded with) an address of that
+    /// system, in creation order: the only links a packet targeted at the system can be
+    /// offered without being dropped silently, so that such a packet costs the same
+    /// however many other links there are. Links stay listed while their address
+    /// expires (the decision checks liveness) and leave with the link.
+    by_system: Vec<Vec<LinkId>>,
 }
 
 impl Router {
@@ -100,6 +106,27 @@ impl Router {
             queued_bytes: 0,
             sources: SourceTable::default(),
             sequences: Sequences::default(),
+            by_system: vec![Vec::new(); 256],
+        }
+    }
+
+    /// Lists link `id` under `system` (see `by_system`).
+    fn index_system(&mut self, system: u8, id: LinkId) {
+        let list = &mut self.by_system[usize::from(system)];
+        if let Err(at) = list.binary_search(&id) {
+            list.insert(at, id);
+        }
+    }
+
+    /// Takes the links of `removed` out of every system's list.
+    fn unindex(&mut self, removed: &[LinkId]) {
+        if removed.is_empty() {
+            return;
+        }
+        let mut removed = removed.to_vec();
+        removed.sort_unstable();
+        for list in &mut self.by_system {
+            list.retain(|id| removed.binary_search(id).is_err());
         }
     }
 
@@ -159,6 +186,7 @@ impl Router {
         let i = self.add_link(name, LinkKind::Serial, now);
         let want = self.options.event_level >= 1;
         let link = &mut self.links[i];
+        let id = link.id();
         for &address in preload {
             if link.pool.preload(address) && want {
                 out.events.push(Event::NewComponent {
@@ -167,7 +195,10 @@ impl Router {
                 });
             }
         }
-        link.id()
+        for &address in preload {
+            self.index_system(address.system, id);
+        }
+        id
     }
 
     /// Adds a UDP link for a remote that just sent its first valid frame; `name` is
@@ -198,6 +229,7 @@ impl Router {
         };
         let link = self.links.remove(i);
         self.queued_bytes -= link.queue.bytes();
+        self.unindex(&[id]);
         true
     }
 
@@ -263,11 +295,14 @@ impl Router {
         self.sequences.count(src, frame.seq());
         let src_link = &mut self.links[si];
         src_link.counters.received(len);
-        if src_link.learn(src, now) && level >= 1 {
-            out.events.push(Event::NewComponent {
-                address: src,
-                link: link_ref(src_link),
-            });
+        if src_link.learn(src, now) {
+            if level >= 1 {
+                out.events.push(Event::NewComponent {
+                    address: src,
+                    link: link_ref(src_link),
+                });
+            }
+            self.index_system(src.system, source);
         }
         let src_ref = (level >= 2).then(|| link_ref(&self.links[si]));
         if let Some(s) = &src_ref {
@@ -279,7 +314,20 @@ impl Router {
 
         let mut packet: Option<Packet> = None;
         let mut routed = false;
-        for i in 0..self.links.len() {
+        // A packet for a system (S.C or S.0, not the broadcast 0.0) is offered only to
+        // the links that know an address of S: every other link would drop it silently.
+        let system = target
+            .filter(|t| *t != Address::new(0, 0))
+            .map(|t| usize::from(t.system));
+        let offered = system.map_or(self.links.len(), |s| self.by_system[s].len());
+        for k in 0..offered {
+            let i = match system {
+                None => k,
+                Some(s) => match self.index(self.by_system[s][k]) {
+                    Some(i) => i,
+                    None => continue,
+                },
+            };
             let link = &self.links[i];
             let decision = decide(
                 &mut self.filter,
@@ -427,6 +475,7 @@ impl Router {
             }
         });
         self.queued_bytes -= freed;
+        self.unindex(&removed);
         removed
     }
 
