@@ -60,6 +60,8 @@ use std::time::{Duration, Instant};
 use mavtables::wire::encode::{Header, encode_v2};
 use mavtables::wire::{Frame, Parser};
 
+mod light;
+
 /// MAVLink system id of the generator.
 const GEN_SYSTEM: u8 = 1;
 /// System id of sink `i` is `SINK_SYSTEM + i`.
@@ -835,13 +837,7 @@ impl Forwarder {
     /// run time of each of its threads (`/proc/<pid>/task/*/schedstat`), where
     /// `/proc/<pid>/stat` counts in 10 ms ticks.
     fn cpu(&self) -> Option<Duration> {
-        let tasks = std::fs::read_dir(format!("/proc/{}/task", self.child.id())).ok()?;
-        let mut ns = 0u64;
-        for task in tasks {
-            let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
-            ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
-        }
-        Some(Duration::from_nanos(ns))
+        light::schedstat_cpu(self.child.id())
     }
 
     /// Peak resident set size (`VmHWM`), KiB.

@@ -157,7 +157,7 @@ fn main() {
         let calls = light::syscalls_during(s.router.pid(), || {
             sent = light::trial(sender, Some(to), sink, RATE, window, None).sent;
         });
-        syscalls.push(calls.map(|c| c as f64 / sent.max(1) as f64));
+        syscalls.push(calls.map(|c| c.total as f64 / sent.max(1) as f64));
     }
     println!(
         "\n| build | idle TCP clients | router CPU/frame (median) | ÷ no clients | latency p50 / p99 | syscalls/frame | received |"

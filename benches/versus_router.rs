@@ -35,7 +35,8 @@ struct Contestant {
     sender: UdpSocket,
     /// Trials per rate (index into [`RATES`]).
     trials: [Vec<Trial>; 2],
-    syscalls: [Option<f64>; 2],
+    /// System calls and frames sent in the counted window, per rate.
+    syscalls: [Option<(light::Syscalls, u64)>; 2],
 }
 
 impl Contestant {
@@ -128,12 +129,12 @@ fn main() {
             let calls = light::syscalls_during(pid, || {
                 sent = light::trial(sender, to, sink, rate, Duration::from_secs(3), None).sent;
             });
-            c.syscalls[r] = calls.map(|n| n as f64 / sent.max(1) as f64);
+            c.syscalls[r] = calls.map(|n| (n, sent.max(1)));
         }
     }
     for (r, &(rate, _)) in RATES.iter().enumerate() {
         println!(
-            "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame | latency p50 / p99 (medians) | received |",
+            "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame (epoll_wait, timerfd_settime per s) | latency p50 / p99 (medians) | received |",
             rate as u64
         );
         println!("|---|---:|---:|---|---:|");
@@ -154,7 +155,15 @@ fn main() {
             println!(
                 "| {} | {cpu_text} | {} | {p50:.1} / {p99:.1} µs | {received}/{sent} |",
                 c.name,
-                c.syscalls[r].map_or("–".to_string(), |s| format!("{s:.2}")),
+                c.syscalls[r].map_or("–".to_string(), |(s, sent)| {
+                    let per_s = rate / sent as f64;
+                    format!(
+                        "{:.2} ({:.2}/frame, {:.0}/s)",
+                        s.total as f64 / sent as f64,
+                        s.epoll_wait as f64 / sent as f64,
+                        s.timer_settime as f64 * per_s
+                    )
+                }),
             );
         }
     }

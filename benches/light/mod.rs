@@ -397,13 +397,27 @@ pub fn trial(
     }
 }
 
+/// System calls a router made in a window of time.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Syscalls {
+    /// All of them.
+    pub total: u64,
+    /// `epoll_wait` (each a wake-up, or a poll that found something at once).
+    pub epoll_wait: u64,
+    /// `timerfd_settime` (re-arming a timer).
+    pub timer_settime: u64,
+}
+
 /// System calls process `pid` made while `window` ran, counted by `perf stat` on the
-/// `syscalls:sys_enter_*` tracepoints; None when perf cannot count them here. The
-/// count includes its idle wake-ups during the window.
-pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<u64> {
+/// `raw_syscalls:sys_enter` and `syscalls:sys_enter_*` tracepoints (attached before
+/// the window starts); None when perf cannot count them here. The count includes the
+/// router's idle wake-ups during the window.
+pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<Syscalls> {
     let out = std::env::temp_dir().join(format!("mavtables-perf-{}-{pid}", std::process::id()));
+    let events =
+        "raw_syscalls:sys_enter,syscalls:sys_enter_epoll_wait,syscalls:sys_enter_timerfd_settime";
     let mut perf = Command::new("perf")
-        .args(["stat", "-x", ",", "-e", "syscalls:sys_enter_*", "-o"])
+        .args(["stat", "-x", ",", "-e", events, "-o"])
         .arg(&out)
         .arg("-p")
         .arg(pid.to_string())
@@ -412,7 +426,7 @@ pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<u64> {
         .spawn()
         .ok()?;
     // perf attaches to the tracepoints before it counts.
-    thread::sleep(Duration::from_millis(700));
+    thread::sleep(Duration::from_millis(500));
     window();
     // SAFETY: signals our own child, which has not been waited for (the pid is live).
     unsafe {
@@ -421,16 +435,19 @@ pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<u64> {
     let _ = perf.wait();
     let text = std::fs::read_to_string(&out).ok()?;
     let _ = std::fs::remove_file(&out);
-    let mut total = 0;
-    let mut any = false;
-    for line in text.lines() {
-        let mut fields = line.split(',');
-        if let Some(Ok(n)) = fields.next().map(str::parse::<u64>) {
-            total += n;
-            any = true;
-        }
-    }
-    any.then_some(total)
+    let count = |event: &str| {
+        text.lines().find_map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            (fields.get(2) == Some(&event))
+                .then(|| fields.first()?.parse::<u64>().ok())
+                .flatten()
+        })
+    };
+    Some(Syscalls {
+        total: count("raw_syscalls:sys_enter")?,
+        epoll_wait: count("syscalls:sys_enter_epoll_wait").unwrap_or(0),
+        timer_settime: count("syscalls:sys_enter_timerfd_settime").unwrap_or(0),
+    })
 }
 
 /// The median of `v` (NaN when empty).
