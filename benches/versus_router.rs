@@ -6,12 +6,13 @@
 //! versus_router` (without `MAVLINK_ROUTER` it says it was skipped; nothing of
 //! mavlink-router is part of this repository). `MAVTABLES_BEFORE=<path>` adds another
 //! mavtables build. Each router gets a UDP server and a UDP client endpoint to its own
-//! sink (`mavlink-routerd -c <empty file> -t 0 -e 127.0.0.1:SINK 127.0.0.1:PORT`; for
-//! mavtables the same as a configuration, every frame accepted); targeted COMMAND_LONG
-//! frames, one datagram each, carry their send time (see `light/mod.rs`). At 1k and
-//! 10k frames/s, 5 rounds (3 s and 1 s) per router, the order alternating round by
-//! round; medians. System calls: `perf stat -e 'syscalls:sys_enter_*' -p PID` over a
-//! separate 3 s window per router and rate, divided by the frames sent in it.
+//! sink: `mavlink-routerd -c <file: [General] TcpServerPort = 0> -t 0 -e 127.0.0.1:SINK
+//! 127.0.0.1:PORT`, and for mavtables the same as a configuration, every frame
+//! accepted. Targeted COMMAND_LONG frames, one datagram each, carry their send time (see
+//! `light/mod.rs`). At 1k and 10k frames/s, 5 rounds (3 s and 1 s) per router, the
+//! order alternating round by round; medians. System calls: `perf stat -e
+//! raw_syscalls:sys_enter,… -p PID` over a separate 3 s window per router and rate,
+//! divided by the frames sent in it (the router's idle wake-ups in the window count).
 
 mod light;
 
@@ -134,10 +135,10 @@ fn main() {
     }
     for (r, &(rate, _)) in RATES.iter().enumerate() {
         println!(
-            "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame (epoll_wait, timerfd_settime per s) | latency p50 / p99 (medians) | received |",
+            "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame (epoll_wait/frame, timerfd_settime/s) | context switches/frame (migrations/s) | latency p50 / p99 (medians) | received |",
             rate as u64
         );
-        println!("|---|---:|---:|---|---:|");
+        println!("|---|---:|---:|---:|---|---:|");
         for c in &contestants {
             let trials = &c.trials[r];
             let cpu: Vec<f64> = trials.iter().filter_map(Trial::cpu_per_frame_us).collect();
@@ -153,15 +154,22 @@ fn main() {
             let sent: u64 = trials.iter().map(|t| t.sent).sum();
             let received: u64 = trials.iter().map(|t| t.received).sum();
             println!(
-                "| {} | {cpu_text} | {} | {p50:.1} / {p99:.1} µs | {received}/{sent} |",
+                "| {} | {cpu_text} | {} | {} | {p50:.1} / {p99:.1} µs | {received}/{sent} |",
                 c.name,
                 c.syscalls[r].map_or("–".to_string(), |(s, sent)| {
                     let per_s = rate / sent as f64;
                     format!(
-                        "{:.2} ({:.2}/frame, {:.0}/s)",
+                        "{:.2} ({:.2}, {:.1})",
                         s.total as f64 / sent as f64,
                         s.epoll_wait as f64 / sent as f64,
                         s.timer_settime as f64 * per_s
+                    )
+                }),
+                c.syscalls[r].map_or("–".to_string(), |(s, sent)| {
+                    format!(
+                        "{:.2} ({:.1})",
+                        s.context_switches as f64 / sent as f64,
+                        s.migrations as f64 * rate / sent as f64
                     )
                 }),
             );

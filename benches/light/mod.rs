@@ -150,16 +150,18 @@ impl Router {
     }
 
     /// mavlink-router (`mavlink-routerd` at `exe`): a UDP server and a UDP client
-    /// endpoint of `sink`, its TCP server off, no configuration file.
+    /// endpoint of `sink`, its TCP server off; its configuration file says only that
+    /// (an empty one makes it exit, and without one it reads
+    /// `/etc/mavlink-router/main.conf`).
     pub fn mavlink_router(name: &str, exe: &Path, sink: u16) -> Result<Router, String> {
         let port = free_port().map_err(|e| e.to_string())?;
         let dir = scratch_dir(name, port)?;
-        let empty = dir.join("main.conf");
-        std::fs::write(&empty, "").map_err(|e| e.to_string())?;
+        let conf = dir.join("main.conf");
+        std::fs::write(&conf, "[General]\nTcpServerPort = 0\n").map_err(|e| e.to_string())?;
         let mut command = Command::new(exe);
         command
             .arg("-c")
-            .arg(&empty)
+            .arg(&conf)
             .arg("-t")
             .arg("0")
             .arg("-e")
@@ -406,6 +408,10 @@ pub struct Syscalls {
     pub epoll_wait: u64,
     /// `timerfd_settime` (re-arming a timer).
     pub timer_settime: u64,
+    /// Context switches (each wake-up is one, and so is each time it is preempted).
+    pub context_switches: u64,
+    /// Moves to another CPU.
+    pub migrations: u64,
 }
 
 /// System calls process `pid` made while `window` ran, counted by `perf stat` on the
@@ -414,8 +420,8 @@ pub struct Syscalls {
 /// router's idle wake-ups during the window.
 pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<Syscalls> {
     let out = std::env::temp_dir().join(format!("mavtables-perf-{}-{pid}", std::process::id()));
-    let events =
-        "raw_syscalls:sys_enter,syscalls:sys_enter_epoll_wait,syscalls:sys_enter_timerfd_settime";
+    let events = "raw_syscalls:sys_enter,syscalls:sys_enter_epoll_wait,\
+                  syscalls:sys_enter_timerfd_settime,context-switches,cpu-migrations";
     let mut perf = Command::new("perf")
         .args(["stat", "-x", ",", "-e", events, "-o"])
         .arg(&out)
@@ -447,6 +453,8 @@ pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<Syscalls> {
         total: count("raw_syscalls:sys_enter")?,
         epoll_wait: count("syscalls:sys_enter_epoll_wait").unwrap_or(0),
         timer_settime: count("syscalls:sys_enter_timerfd_settime").unwrap_or(0),
+        context_switches: count("context-switches").unwrap_or(0),
+        migrations: count("cpu-migrations").unwrap_or(0),
     })
 }
 

@@ -162,6 +162,9 @@ impl Runtime {
     /// Hands the frames the core kept for recording to the recorder, stamped with the
     /// wall clock.
     fn record(&mut self) {
+        if self.recorder.is_none() {
+            return;
+        }
         let now = self.now();
         if let Some(recorder) = &mut self.recorder {
             recorder.take_from(&mut self.engine, now, wall_micros());
@@ -483,14 +486,13 @@ impl Runtime {
         self.arm_timer(now);
         self.logger.flush();
         loop {
-            let now = self.now();
             let timeout = if !self.readable.is_empty()
                 || !self.to_flush.is_empty()
                 || self.engine.has_ready()
             {
                 Some(Duration::ZERO)
             } else {
-                stop_by.map(|t| t.saturating_since(now))
+                stop_by.map(|t| t.saturating_since(self.now()))
             };
             if let Err(e) = self.poll.poll(&mut events, timeout) {
                 if e.kind() == io::ErrorKind::Interrupted {

@@ -26,7 +26,7 @@
 mod configure;
 mod ready;
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::fmt::Display;
 use std::io;
 use std::net::SocketAddr;
@@ -138,7 +138,7 @@ pub struct Engine {
     /// The next deadline of each interface that has one.
     deadlines: ready::Deadlines,
     /// The interface each link belongs to.
-    owner: HashMap<LinkId, InterfaceId>,
+    owner: ready::ByLink<InterfaceId>,
     /// Scratch for [`Engine::handle_timeout`].
     due: Vec<InterfaceId>,
 }
@@ -175,7 +175,7 @@ impl Engine {
             configured: Vec::new(),
             ready: ready::ReadySet::default(),
             deadlines: ready::Deadlines::default(),
-            owner: HashMap::new(),
+            owner: ready::ByLink::default(),
             due: Vec::new(),
         }
     }
