@@ -172,18 +172,12 @@ impl Router {
 
     fn spawn(
         name: &str,
-        mut command: Command,
+        command: Command,
         dir: PathBuf,
         port: u16,
         tcp: Option<u16>,
     ) -> Result<Router, String> {
-        let log = std::fs::File::create(dir.join("router.log")).map_err(|e| e.to_string())?;
-        let child = command
-            .stdin(Stdio::null())
-            .stdout(log.try_clone().map_err(|e| e.to_string())?)
-            .stderr(log)
-            .spawn()
-            .map_err(|e| format!("cannot start {name}: {e}"))?;
+        let child = spawn_logged(command, &dir.join("router.log"), name)?;
         let local = |p| SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, p));
         Ok(Router {
             name: name.to_string(),
@@ -223,6 +217,17 @@ impl Drop for Router {
         let _ = self.child.wait();
         let _ = std::fs::remove_dir_all(&self.dir);
     }
+}
+
+/// Starts `command` with its standard output and error going to the file `log`.
+pub fn spawn_logged(mut command: Command, log: &Path, name: &str) -> Result<Child, String> {
+    let log = std::fs::File::create(log).map_err(|e| format!("{}: {e}", log.display()))?;
+    command
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().map_err(|e| e.to_string())?)
+        .stderr(log)
+        .spawn()
+        .map_err(|e| format!("cannot start {name}: {e}"))
 }
 
 fn scratch_dir(name: &str, port: u16) -> Result<PathBuf, String> {

@@ -12,33 +12,12 @@ use std::collections::{BTreeSet, VecDeque};
 use super::InterfaceId;
 use crate::routing::time::Timestamp;
 
-/// Hashes link ids (counters the router hands out, never chosen by a peer) with one
-/// multiplication instead of SipHash, for the link → interface map looked up for every
-/// packet queued.
-#[derive(Debug, Default, Clone, Copy)]
-pub(super) struct IdHasher(u64);
-
-impl std::hash::Hasher for IdHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        }
-    }
-
-    fn write_u64(&mut self, n: u64) {
-        self.0 = (self.0 ^ n).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    }
-}
-
-/// A map keyed by link id, hashed with [`IdHasher`].
+/// A map keyed by link id (a counter the router hands out, never chosen by a peer),
+/// hashed with one multiplication: it is looked up for every packet queued.
 pub(super) type ByLink<V> = std::collections::HashMap<
     crate::routing::link::LinkId,
     V,
-    std::hash::BuildHasherDefault<IdHasher>,
+    std::hash::BuildHasherDefault<crate::routing::sources::IntHasher>,
 >;
 
 /// Interfaces with output waiting, each at most once, oldest first.
