@@ -52,13 +52,15 @@ use std::io::{self, ErrorKind, Read, Write};
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, TcpListener, TcpStream, UdpSocket};
 use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
 use mavtables::wire::encode::{Header, encode_v2};
 use mavtables::wire::{Frame, Parser};
+
+mod light;
 
 /// MAVLink system id of the generator.
 const GEN_SYSTEM: u8 = 1;
@@ -722,7 +724,7 @@ impl Forwarder {
         let dir =
             std::env::temp_dir().join(format!("mavtables-bench-{}-{port}", std::process::id()));
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        let mut command = if mode != Mode::Router {
+        let command = if mode != Mode::Router {
             let me = std::env::current_exe().map_err(|e| format!("own path: {e}"))?;
             let mut c = Command::new(me);
             c.arg(RELAY_ARG).arg(port.to_string());
@@ -744,13 +746,7 @@ impl Forwarder {
             c.arg("--config").arg(&config);
             c
         };
-        let log = std::fs::File::create(dir.join("router.log")).map_err(|e| e.to_string())?;
-        let child = command
-            .stdin(Stdio::null())
-            .stdout(log.try_clone().map_err(|e| e.to_string())?)
-            .stderr(log)
-            .spawn()
-            .map_err(|e| format!("cannot start the forwarder: {e}"))?;
+        let child = light::spawn_logged(command, &dir.join("router.log"), "the forwarder")?;
         Ok(Forwarder {
             child,
             addr: SocketAddrV4::new(Ipv4Addr::LOCALHOST, port),
@@ -835,13 +831,7 @@ impl Forwarder {
     /// run time of each of its threads (`/proc/<pid>/task/*/schedstat`), where
     /// `/proc/<pid>/stat` counts in 10 ms ticks.
     fn cpu(&self) -> Option<Duration> {
-        let tasks = std::fs::read_dir(format!("/proc/{}/task", self.child.id())).ok()?;
-        let mut ns = 0u64;
-        for task in tasks {
-            let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
-            ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
-        }
-        Some(Duration::from_nanos(ns))
+        light::schedstat_cpu(self.child.id())
     }
 
     /// Peak resident set size (`VmHWM`), KiB.

@@ -9,6 +9,7 @@
 //! `timerfd` wakes the loop for the core's next deadline with microsecond precision.
 //! Nothing busy-waits: an idle router sleeps in `epoll_wait`.
 
+use std::collections::VecDeque;
 use std::io;
 use std::os::fd::{AsRawFd, RawFd};
 use std::sync::Arc;
@@ -62,8 +63,14 @@ struct Slot {
     /// Whether writability is watched (only while the driver is blocked: an idle socket
     /// is always writable, and watching it would wake the loop after every send).
     watching_writes: bool,
-    /// Its input may not be drained yet (its turn ended early, or it just opened).
+    /// Its input may not be drained yet (its turn ended early, or it just opened): it
+    /// is in [`Runtime::readable`].
     ready: bool,
+    /// It is in [`Runtime::to_flush`].
+    flush_queued: bool,
+    /// Its open waits for a look-up of its remote (the waker rings): it is in
+    /// [`Runtime::opening`].
+    opening: bool,
 }
 
 /// Everything the loop owns.
@@ -73,6 +80,13 @@ struct Runtime {
     slots: Slab<Slot>,
     /// The slot key of each interface, by interface id.
     slot_of: Vec<usize>,
+    /// Slots whose input may not be drained yet, each once (see [`Slot::ready`]).
+    readable: VecDeque<usize>,
+    /// Slots to flush this turn, each once: interfaces the core names
+    /// ([`Engine::poll_ready`]) and descriptors that became writable or failed.
+    to_flush: Vec<usize>,
+    /// Slots waiting for a look-up of their remote: flushed when the waker rings.
+    opening: Vec<usize>,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -148,6 +162,9 @@ impl Runtime {
     /// Hands the frames the core kept for recording to the recorder, stamped with the
     /// wall clock.
     fn record(&mut self) {
+        if self.recorder.is_none() {
+            return;
+        }
         let now = self.now();
         if let Some(recorder) = &mut self.recorder {
             recorder.take_from(&mut self.engine, now, wall_micros());
@@ -215,6 +232,41 @@ impl Runtime {
         slot.watching_writes = false;
     }
 
+    /// Reads `key` this turn (again).
+    fn mark_readable(&mut self, key: usize) {
+        if let Some(slot) = self.slots.get_mut(key)
+            && !slot.ready
+        {
+            slot.ready = true;
+            self.readable.push_back(key);
+        }
+    }
+
+    /// Flushes `key` this turn.
+    fn mark_flush(&mut self, key: usize) {
+        if let Some(slot) = self.slots.get_mut(key)
+            && !slot.flush_queued
+        {
+            slot.flush_queued = true;
+            self.to_flush.push(key);
+        }
+    }
+
+    /// Reads every slot that may have input, each once: a slot whose turn ended with
+    /// input left is read again next turn (it is queued behind the others).
+    fn receive_readable(&mut self, now: Timestamp) {
+        for _ in 0..self.readable.len() {
+            let Some(key) = self.readable.pop_front() else {
+                break;
+            };
+            match self.slots.get_mut(key) {
+                Some(slot) if slot.ready => slot.ready = false,
+                _ => continue,
+            }
+            self.receive(key, now);
+        }
+    }
+
     fn receive(&mut self, key: usize, now: Timestamp) {
         let Some(slot) = self.slots.get_mut(key) else {
             return;
@@ -225,9 +277,9 @@ impl Runtime {
             accepted.push(driver);
         }
         match progress {
-            Progress::More => slot.ready = true,
+            Progress::More => self.mark_readable(key),
             Progress::Lost => self.close(key),
-            Progress::Done | Progress::Blocked => slot.ready = false,
+            Progress::Done | Progress::Blocked => {}
         }
         // A connection that closed is taken out of the loop now, before another one
         // can be accepted under its (reused) interface number.
@@ -245,13 +297,18 @@ impl Runtime {
             driver,
             registered: None,
             watching_writes: false,
-            ready,
+            ready: false,
+            flush_queued: false,
+            opening: false,
         });
         if self.slot_of.len() <= interface.0 {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
         }
         self.slot_of[interface.0] = key;
         self.watch(key);
+        if ready {
+            self.mark_readable(key);
+        }
     }
 
     /// Takes the driver of a closed connection out of the loop.
@@ -266,25 +323,69 @@ impl Runtime {
         }
     }
 
-    /// Sends what every driver can send now, and watches writability exactly where the
-    /// operating system refused data.
-    fn flush_all(&mut self, now: Timestamp) {
-        for key in 0..self.slots.capacity() {
-            let Some(slot) = self.slots.get_mut(key) else {
-                continue;
-            };
-            let progress = slot.driver.flush(&mut self.engine, now);
-            if progress == Progress::Lost {
-                self.close(key);
-                continue;
+    /// Sends what the drivers with something to send can send now — the interfaces the
+    /// core names, the descriptors that became writable or failed, and after the waker
+    /// rang the drivers waiting for a look-up — and watches writability exactly where
+    /// the operating system refused data. Idle drivers are not visited.
+    fn flush_ready(&mut self, now: Timestamp) {
+        // Flushing can name more (a client that bound its socket and opened): a few
+        // rounds; what is named after them is flushed next turn (the poll does not
+        // wait then).
+        for _ in 0..4 {
+            while let Some(id) = self.engine.poll_ready() {
+                if let Some(&key) = self.slot_of.get(id.0) {
+                    self.mark_flush(key);
+                }
             }
-            let blocked = progress == Progress::Blocked;
-            // A client that has just resolved its remote has a descriptor to watch.
-            let fd_changed = slot.driver.fd() != slot.registered;
-            if fd_changed || (blocked != slot.watching_writes && slot.registered.is_some()) {
-                slot.watching_writes = blocked;
-                self.watch(key);
+            if self.to_flush.is_empty() {
+                return;
             }
+            let mut keys = std::mem::take(&mut self.to_flush);
+            for &key in &keys {
+                if let Some(slot) = self.slots.get_mut(key) {
+                    slot.flush_queued = false;
+                    self.flush(key, now);
+                }
+            }
+            keys.clear();
+            if self.to_flush.is_empty() {
+                self.to_flush = keys;
+            }
+        }
+    }
+
+    /// Flushes the drivers waiting for a look-up (the waker rang); those that got their
+    /// descriptor stop waiting.
+    fn flush_opening(&mut self) {
+        let opening = std::mem::take(&mut self.opening);
+        for key in opening {
+            match self.slots.get_mut(key) {
+                Some(slot) if slot.opening && slot.driver.fd().is_none() => {
+                    self.mark_flush(key);
+                    self.opening.push(key);
+                }
+                Some(slot) => slot.opening = false,
+                None => {}
+            }
+        }
+    }
+
+    /// Sends what driver `key` can send now.
+    fn flush(&mut self, key: usize, now: Timestamp) {
+        let Some(slot) = self.slots.get_mut(key) else {
+            return;
+        };
+        let progress = slot.driver.flush(&mut self.engine, now);
+        if progress == Progress::Lost {
+            self.close(key);
+            return;
+        }
+        let blocked = progress == Progress::Blocked;
+        // A client that has just resolved its remote has a descriptor to watch.
+        let fd_changed = slot.driver.fd() != slot.registered;
+        if fd_changed || (blocked != slot.watching_writes && slot.registered.is_some()) {
+            slot.watching_writes = blocked;
+            self.watch(key);
         }
     }
 
@@ -316,13 +417,18 @@ impl Runtime {
             Ok(true) => {
                 self.engine.stream_opened(interface, now);
                 slot.watching_writes = false;
-                // Bytes may already be waiting; an edge may have been missed.
-                slot.ready = true;
                 self.watch(key);
+                // Bytes may already be waiting; an edge may have been missed.
+                self.mark_readable(key);
             }
             Ok(false) => {
-                // Connecting: writable (or an error) says how it went.
+                // Connecting: writable (or an error) says how it went; without a
+                // descriptor yet, the waker says the look-up has its answer.
                 slot.watching_writes = true;
+                if slot.driver.fd().is_none() && !slot.opening {
+                    slot.opening = true;
+                    self.opening.push(key);
+                }
                 self.watch(key);
             }
             Err(e) => self.engine.stream_open_failed(interface, now, &e),
@@ -345,13 +451,17 @@ impl Runtime {
         self.next_watchdog = Some(now + interval);
     }
 
-    /// Arms the timer for the core's next deadline (or the watchdog's, if earlier).
+    /// Arms the timer for the core's next deadline (or the watchdog's, if earlier) —
+    /// only when it is earlier than the time the timer is armed for: a timer that fires
+    /// before the deadline wakes a turn that finds nothing due and re-arms (handling
+    /// timeouts early is harmless), which costs less than a `timerfd_settime` every
+    /// time a deadline moves later (held-back bytes, with every datagram).
     fn arm_timer(&mut self, now: Timestamp) {
         let mut due = self.engine.poll_timeout();
         if let Some(watchdog) = self.next_watchdog {
             due = due.min(watchdog);
         }
-        if self.timer_armed != Some(due) {
+        if self.timer_armed.is_none_or(|armed| due < armed) {
             self.timer_armed = Some(due);
             if let Err(e) = self.timer.set(Some(due.saturating_since(now))) {
                 log::error(&format_args!("timer: {e}"));
@@ -376,11 +486,13 @@ impl Runtime {
         self.arm_timer(now);
         self.logger.flush();
         loop {
-            let now = self.now();
-            let timeout = if self.slots.iter().any(|(_, s)| s.ready) {
+            let timeout = if !self.readable.is_empty()
+                || !self.to_flush.is_empty()
+                || self.engine.has_ready()
+            {
                 Some(Duration::ZERO)
             } else {
-                stop_by.map(|t| t.saturating_since(now))
+                stop_by.map(|t| t.saturating_since(self.now()))
             };
             if let Err(e) = self.poll.poll(&mut events, timeout) {
                 if e.kind() == io::ErrorKind::Interrupted {
@@ -407,17 +519,20 @@ impl Runtime {
                         }
                     }
                     // A look-up has its answer; the drivers' flush takes it below.
-                    WAKER => {}
+                    WAKER => self.flush_opening(),
                     TIMER => {
                         self.timer.acknowledge();
                         // Fired: whatever is due next is armed afresh.
                         self.timer_armed = None;
                     }
                     Token(key) => {
-                        if let Some(slot) = self.slots.get_mut(key)
-                            && (event.is_readable() || event.is_error() || event.is_read_closed())
-                        {
-                            slot.ready = true;
+                        if event.is_readable() || event.is_error() || event.is_read_closed() {
+                            self.mark_readable(key);
+                        }
+                        // A blocked driver can write again, a connection was made or
+                        // failed, or a failed write waits to be reported.
+                        if event.is_writable() || event.is_error() || event.is_write_closed() {
+                            self.mark_flush(key);
                         }
                     }
                 }
@@ -428,11 +543,7 @@ impl Runtime {
                 self.reload(now);
             }
             if stop_by.is_none() {
-                for key in 0..self.slots.capacity() {
-                    if self.slots.get(key).is_some_and(|s| s.ready) {
-                        self.receive(key, now);
-                    }
-                }
+                self.receive_readable(now);
             }
             self.keep_signing_state(now);
             self.feed_watchdog(now);
@@ -442,12 +553,16 @@ impl Runtime {
             self.publish_stats(now);
             self.handle_notices(now);
             self.record();
-            self.flush_all(now);
+            self.flush_ready(now);
             self.handle_notices(now);
             self.arm_timer(now);
             self.logger.flush();
             if let Some(deadline) = stop_by {
-                self.slots.iter_mut().for_each(|(_, s)| s.ready = false);
+                for key in self.readable.drain(..) {
+                    if let Some(slot) = self.slots.get_mut(key) {
+                        slot.ready = false;
+                    }
+                }
                 if self.idle() || now >= deadline {
                     return Ok(());
                 }
@@ -613,6 +728,9 @@ fn start(
         engine,
         slots: Slab::new(),
         slot_of: Vec::new(),
+        readable: VecDeque::new(),
+        to_flush: Vec::new(),
+        opening: Vec::new(),
         timer,
         timer_armed: None,
         signals,

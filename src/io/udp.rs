@@ -259,8 +259,10 @@ impl Driver for UdpDriver {
             return Progress::Done;
         };
         loop {
-            let room = MAX_BATCH - self.in_flight.len();
+            let waiting = self.in_flight.len();
+            let room = MAX_BATCH - waiting;
             engine.poll_transmit(self.interface, now, room, &mut self.in_flight);
+            let handed_out = self.in_flight.len() - waiting;
             if self.in_flight.is_empty() {
                 return Progress::Done;
             }
@@ -275,11 +277,16 @@ impl Driver for UdpDriver {
                 .map(|t| (on_wire(t.to.unwrap_or(nowhere), v6), &t.packet[..]));
             match sys::send_batch(socket, &mut self.send_scratch, batch, self.gso) {
                 Ok(sent) => {
-                    for t in self.in_flight.drain(..sent.min(wanted)) {
-                        engine.on_sent(&t);
-                    }
+                    let sent_here = sent.min(wanted);
+                    engine.on_sent_batch(self.in_flight.range(..sent_here));
+                    self.in_flight.drain(..sent_here);
                     if sent < wanted {
                         return Progress::Blocked; // the socket buffer is full
+                    }
+                    if handed_out < room {
+                        // The core handed out less than there was room for: it has
+                        // nothing more now (it names the interface again when it has).
+                        return Progress::Done;
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Blocked,

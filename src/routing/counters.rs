@@ -54,6 +54,12 @@ impl LinkCounters {
         self.frames_out += 1;
         self.bytes_out += len as u64;
     }
+
+    /// Counts `frames` frames of `bytes` bytes in all as sent.
+    pub fn sent_many(&mut self, frames: u64, bytes: usize) {
+        self.frames_out += frames;
+        self.bytes_out += bytes as u64;
+    }
 }
 
 /// One link's line of the counters report.

@@ -10,9 +10,12 @@
 //!            ifc = engine.add_stream_interface(device, …, now)             (a serial port)
 //! input:     engine.handle_datagram(ifc, peer, bytes, now)    every datagram received
 //!            engine.handle_stream(ifc, bytes, now)            every chunk read
+//! ready:     while let Some(ifc) = engine.poll_ready() { flush ifc }   (only those: an
+//!            interface never named has nothing to send; see [`Engine::poll_ready`])
 //! output:    engine.poll_transmit(ifc, now, room, &mut queue)   then send what it gave;
-//!            engine.on_sent(&t) for each sent, engine.on_send_failed(ifc, &t, &e) if not
-//! time:      arm one timer for engine.poll_timeout(); when it fires: handle_timeout(now)
+//!            engine.on_sent_batch(&sent) per batch taken, on_send_failed(ifc, &t, &e) if not
+//! time:      arm one timer for engine.poll_timeout() (re-arming only when it moves
+//!            earlier is enough: handle_timeout(now) called early does nothing)
 //! notices:   while let Some(n) = engine.poll_event() { log it, or open a stream it names }
 //! streams:   engine.stream_opened / stream_open_failed / stream_lost(ifc, now, …)
 //! ```
@@ -24,6 +27,7 @@
 //! counter. The routing decisions themselves are the [`Router`]'s.
 
 mod configure;
+mod ready;
 
 use std::collections::VecDeque;
 use std::fmt::Display;
@@ -132,6 +136,25 @@ pub struct Engine {
     config: Config,
     /// The core's interface and the signing key of each of `config.interfaces`.
     configured: Vec<configure::Configured>,
+    /// Interfaces with output to hand out ([`Engine::poll_ready`]).
+    ready: ready::ReadySet,
+    /// The next deadline of each interface that has one.
+    deadlines: ready::Deadlines,
+    /// The interface each link belongs to.
+    owner: ready::ByLink<InterfaceId>,
+    /// Scratch for [`Engine::handle_timeout`].
+    due: Vec<InterfaceId>,
+}
+
+/// The next deadline of interface `i`: its held-back bytes turning stale (while open),
+/// the packet its pacer holds back, or its next reopen attempt.
+fn next_deadline(i: &Interface) -> Option<Timestamp> {
+    let stale = i
+        .is_open()
+        .then(|| i.tail.deadline(i.parser.pending_len()))
+        .flatten();
+    let retry = i.connection().and_then(Connection::retry_at);
+    [stale, i.pace_deadline, retry].into_iter().flatten().min()
 }
 
 impl Engine {
@@ -153,6 +176,10 @@ impl Engine {
                 ..config.clone()
             },
             configured: Vec::new(),
+            ready: ready::ReadySet::default(),
+            deadlines: ready::Deadlines::default(),
+            owner: ready::ByLink::default(),
+            due: Vec::new(),
         }
     }
 
@@ -217,6 +244,7 @@ impl Engine {
         }) = self.interfaces.get_mut(id.0)
         {
             *t = Some(target);
+            self.mark_ready(id);
         }
     }
 
@@ -411,7 +439,49 @@ impl Engine {
         // The messages and checks of the configuration in force (see `set_parsing`).
         interface.parser.set_dialect(self.config.dialect);
         interface.parser.set_checks(self.config.checks());
-        InterfaceId(self.interfaces.insert(interface))
+        let link = interface.own_link();
+        let id = InterfaceId(self.interfaces.insert(interface));
+        if let Some(link) = link {
+            self.owner.insert(link, id);
+        }
+        self.refresh_deadline(id);
+        id
+    }
+
+    /// Files interface `id`'s next deadline (after anything that may have moved it:
+    /// input, output, a state change); an interface that is gone has none.
+    fn refresh_deadline(&mut self, id: InterfaceId) {
+        let due = self.interfaces.get(id.0).and_then(next_deadline);
+        self.deadlines.set(id, due);
+    }
+
+    /// Marks interface `id` as having output to hand out (see [`Engine::poll_ready`]).
+    fn mark_ready(&mut self, id: InterfaceId) {
+        self.ready.mark(id);
+    }
+
+    /// Notes that link `link`, created by the input of interface `id`, belongs to it.
+    fn adopt_link(&mut self, link: Option<LinkId>, id: InterfaceId) {
+        if let Some(link) = link {
+            self.owner.entry(link).or_insert(id);
+        }
+    }
+
+    /// The next interface with output to hand out, each named once however many
+    /// packets it got since it was last named: a packet was queued for one of its links,
+    /// its pacer lets a held-back packet go, it opened, or its target became known.
+    /// Flush exactly these (and the drivers the operating system says are writable):
+    /// an interface never named has nothing to send. Call it after every input,
+    /// [`Engine::handle_timeout`] and open or close, until it gives `None`.
+    #[inline]
+    pub fn poll_ready(&mut self) -> Option<InterfaceId> {
+        self.ready.pop()
+    }
+
+    /// True if [`Engine::poll_ready`] would name an interface.
+    #[inline]
+    pub fn has_ready(&self) -> bool {
+        !self.ready.is_empty()
     }
 
     /// The link of stream or client interface `id`.
@@ -484,6 +554,10 @@ impl Engine {
             }
             Kind::Stream { .. } | Kind::Listener { .. } => return,
         };
+        let had_link = matches!(
+            sender,
+            Sender::Stream(_) | Sender::Remote { link: Some(_), .. }
+        );
         let mut intake = Intake {
             router: &mut self.router,
             out: &mut self.out,
@@ -497,7 +571,13 @@ impl Engine {
             tap: self.tap.as_mut(),
         };
         parser.feed_events(bytes, &mut intake);
+        let new_link = (!had_link).then(|| intake.existing_link()).flatten();
         tail.received(now);
+        let held = parser.pending_len() > 0;
+        self.adopt_link(new_link, id);
+        if held || self.deadlines.has(id) {
+            self.refresh_deadline(id);
+        }
         self.take_output();
     }
 
@@ -537,11 +617,19 @@ impl Engine {
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
+        if parser.pending_len() > 0 || self.deadlines.has(id) {
+            self.refresh_deadline(id);
+        }
         self.take_output();
     }
 
     /// Moves the router's events into the notices and readies its output for reuse.
     fn take_output(&mut self) {
+        for link in &self.out.queued {
+            if let Some(&id) = self.owner.get(link) {
+                self.ready.mark(id);
+            }
+        }
         if !self.out.events.is_empty() {
             self.notices
                 .extend(self.out.events.drain(..).map(Notice::Log));
@@ -553,7 +641,10 @@ impl Engine {
     /// priority first on each link; between the peers of a datagram interface in turns
     /// (runs of up to [`SEND_TURN`] packets without `max_bitrate`, one packet with it);
     /// never faster than `max_bitrate`. When the pacer holds a packet back, the time it
-    /// may go is part of [`Engine::poll_timeout`].
+    /// may go is part of [`Engine::poll_timeout`], and the interface is named by
+    /// [`Engine::poll_ready`] again once it has passed. When it hands out `room`
+    /// packets, call it again (after sending them) until it hands out fewer or the
+    /// operating system refuses more: the interface is not named again for what is left.
     pub fn poll_transmit(
         &mut self,
         id: InterfaceId,
@@ -574,7 +665,7 @@ impl Engine {
             signing: edge,
             ..
         } = interface;
-        *pace_deadline = None;
+        let was_paced = pace_deadline.take().is_some();
         let unpaced = pacer.rate() == 0;
         let router = &mut self.router;
         let signing = &mut self.signing;
@@ -654,6 +745,9 @@ impl Engine {
             }
             Kind::Stream { .. } | Kind::DatagramClient { .. } | Kind::Listener { .. } => {}
         }
+        if was_paced || pace_deadline.is_some() {
+            self.refresh_deadline(id);
+        }
     }
 
     /// Hands out up to `left` packets of `link` (going `to`) as far as `take` lets them.
@@ -686,6 +780,36 @@ impl Engine {
     pub fn on_sent(&mut self, t: &Transmit) {
         if let Some(c) = self.router.counters_mut(t.link) {
             c.sent(t.packet.len());
+        }
+    }
+
+    /// Notes that every packet of `sent` was sent (one batch the operating system took):
+    /// each run of packets to one link is counted with one look-up of that link.
+    pub fn on_sent_batch<'a>(&mut self, sent: impl IntoIterator<Item = &'a Transmit>) {
+        let mut run: Option<(LinkId, u64, usize)> = None;
+        for t in sent {
+            match &mut run {
+                Some((link, frames, bytes)) if *link == t.link => {
+                    *frames += 1;
+                    *bytes += t.packet.len();
+                }
+                _ => {
+                    if let Some((link, frames, bytes)) = run.take() {
+                        self.count_sent(link, frames, bytes);
+                    }
+                    run = Some((t.link, 1, t.packet.len()));
+                }
+            }
+        }
+        if let Some((link, frames, bytes)) = run {
+            self.count_sent(link, frames, bytes);
+        }
+    }
+
+    /// Counts `frames` frames of `bytes` bytes in all as sent on `link`.
+    fn count_sent(&mut self, link: LinkId, frames: u64, bytes: usize) {
+        if let Some(c) = self.router.counters_mut(link) {
+            c.sent_many(frames, bytes);
         }
     }
 
@@ -748,6 +872,9 @@ impl Engine {
             self.notices
                 .push_back(Notice::Warning(format!("{} is back", interface.described)));
         }
+        // What was queued while it was closed can go now.
+        self.mark_ready(id);
+        self.refresh_deadline(id);
     }
 
     /// Opening interface `id` failed at `now`: it is tried again after a backoff (said
@@ -769,6 +896,7 @@ impl Engine {
                 interface.described
             )));
         }
+        self.refresh_deadline(id);
     }
 
     /// Stream `id` was lost at `now` (unplugged, closed by the peer, a read or write
@@ -809,6 +937,7 @@ impl Engine {
             }
             Kind::Datagram { .. } | Kind::Listener { .. } => {}
         }
+        self.refresh_deadline(id);
     }
 
     /// Removes accepted connection `id` of `server` and its link.
@@ -817,6 +946,7 @@ impl Engine {
             return;
         };
         self.router.remove_link(link);
+        self.owner.remove(&link);
         if let Some(server) = self.interfaces.get_mut(server.0) {
             server.closed_parsers += *closed.parser.stats();
             server.io_errors += closed.io_errors;
@@ -835,82 +965,26 @@ impl Engine {
     }
 
     /// The next instant something is due: the expiry tick, held-back bytes turning
-    /// stale, a packet the pacer holds back, or opening an interface again.
+    /// stale, a packet the pacer holds back, or opening an interface again. Its cost
+    /// does not grow with the number of interfaces (the deadlines are kept in order).
     pub fn poll_timeout(&self) -> Timestamp {
-        let mut due = self.next_tick;
-        for (_, i) in &self.interfaces {
-            let stale = i
-                .is_open()
-                .then(|| i.tail.deadline(i.parser.pending_len()))
-                .flatten();
-            let retry = i.connection().and_then(Connection::retry_at);
-            for t in [stale, i.pace_deadline, retry].into_iter().flatten() {
-                due = due.min(t);
-            }
-        }
-        due
+        self.deadlines
+            .first()
+            .map_or(self.next_tick, |t| t.min(self.next_tick))
     }
 
-    /// Runs what is due at `now` (see [`Engine::poll_timeout`]).
+    /// Runs what is due at `now` (see [`Engine::poll_timeout`]). Calling it early, or
+    /// more than once, is harmless: only what is due runs, and only the interfaces
+    /// whose deadline passed are visited.
     pub fn handle_timeout(&mut self, now: Timestamp) {
-        for (index, interface) in self.interfaces.iter_mut() {
-            if interface.pace_deadline.is_some_and(|t| t <= now) {
-                // The caller polls for transmits next; the pacer decides afresh then.
-                interface.pace_deadline = None;
-            }
-            let open = interface.is_open();
-            if let Some(connection) = interface.connection_mut()
-                && connection.ask_if_due(now)
-            {
-                self.notices.push_back(Notice::Open(InterfaceId(index)));
-            }
-            let Interface {
-                parser,
-                tail,
-                kind,
-                signing: edge,
-                described,
-                ..
-            } = interface;
-            let stale = open
-                && tail
-                    .deadline(parser.pending_len())
-                    .is_some_and(|t| t <= now);
-            if !stale {
-                continue;
-            }
-            let sender = match kind {
-                Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
-                    Some(Sender::Stream(*link))
-                }
-                Kind::Datagram {
-                    remotes,
-                    last_sender,
-                    ..
-                } => last_sender.map(|address| Sender::Remote {
-                    link: remotes.link_of(address),
-                    remotes,
-                    address,
-                }),
-                Kind::Listener { .. } => None,
-            };
-            if let Some(sender) = sender {
-                // The candidate is rejected and the bytes behind its start scanned again,
-                // so valid frames held up behind noise are routed now.
-                parser.finish(&mut Intake {
-                    router: &mut self.router,
-                    out: &mut self.out,
-                    notices: &mut self.notices,
-                    unknown: &mut self.unknown,
-                    now,
-                    sender,
-                    edge: edge.as_mut(),
-                    signing: &mut self.signing,
-                    described,
-                    tap: self.tap.as_mut(),
-                });
-            }
+        let mut due = std::mem::take(&mut self.due);
+        self.deadlines.take_due(now, &mut due);
+        for &id in &due {
+            self.handle_interface_timeout(id, now);
+            self.refresh_deadline(id);
         }
+        due.clear();
+        self.due = due;
         if now >= self.next_tick {
             for id in self.router.tick(now) {
                 self.forget(id);
@@ -920,12 +994,82 @@ impl Engine {
         self.take_output();
     }
 
+    /// Runs what is due at `now` on interface `id`: lets the pacer's held-back packet
+    /// go, asks for a reopen, or gives up on held-back bytes.
+    fn handle_interface_timeout(&mut self, id: InterfaceId, now: Timestamp) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if interface.pace_deadline.is_some_and(|t| t <= now) {
+            // The pacer decides afresh when the loop polls for transmits.
+            interface.pace_deadline = None;
+            self.ready.mark(id);
+        }
+        let open = interface.is_open();
+        if let Some(connection) = interface.connection_mut()
+            && connection.ask_if_due(now)
+        {
+            self.notices.push_back(Notice::Open(id));
+        }
+        let Interface {
+            parser,
+            tail,
+            kind,
+            signing: edge,
+            described,
+            ..
+        } = interface;
+        let stale = open
+            && tail
+                .deadline(parser.pending_len())
+                .is_some_and(|t| t <= now);
+        if !stale {
+            return;
+        }
+        let sender = match kind {
+            Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
+                Some(Sender::Stream(*link))
+            }
+            Kind::Datagram {
+                remotes,
+                last_sender,
+                ..
+            } => last_sender.map(|address| Sender::Remote {
+                link: remotes.link_of(address),
+                remotes,
+                address,
+            }),
+            Kind::Listener { .. } => None,
+        };
+        let Some(sender) = sender else {
+            return;
+        };
+        // The candidate is rejected and the bytes behind its start scanned again, so
+        // valid frames held up behind noise are routed now.
+        let mut intake = Intake {
+            router: &mut self.router,
+            out: &mut self.out,
+            notices: &mut self.notices,
+            unknown: &mut self.unknown,
+            now,
+            sender,
+            edge: edge.as_mut(),
+            signing: &mut self.signing,
+            described,
+            tap: self.tap.as_mut(),
+        };
+        parser.finish(&mut intake);
+        let link = intake.existing_link();
+        self.adopt_link(link, id);
+    }
+
     /// Forgets the peer of a link the router removed.
     fn forget(&mut self, id: LinkId) {
         for (_, interface) in &mut self.interfaces {
             if let Kind::Datagram { remotes, .. } = &mut interface.kind
                 && let Some(address) = remotes.remove(id)
             {
+                self.owner.remove(&id);
                 self.notices.push_back(Notice::LinkRemoved {
                     id,
                     name: address.to_string(),

@@ -126,7 +126,8 @@ impl Intake<'_> {
         }
     }
 
-    fn existing_link(&self) -> Option<LinkId> {
+    /// The sender's link, if it has one yet.
+    pub(super) fn existing_link(&self) -> Option<LinkId> {
         match &self.sender {
             Sender::Stream(id) => Some(*id),
             Sender::Remote { link, .. } => *link,

@@ -76,6 +76,9 @@ impl Output {
 pub struct Router {
     filter: Filter,
     links: Vec<Link>,
+    /// The id of each of `links`, in the same order: searched instead of the links
+    /// themselves, so that finding a link touches a few cache lines, not one per step.
+    ids: Vec<LinkId>,
     next_id: u64,
     options: RouterOptions,
     /// Bytes held by all queues (each packet counted once per queue holding it).
@@ -86,6 +89,12 @@ pub struct Router {
     sequences: Sequences,
     /// The schedules of streams capped by a `with rate` rule.
     limiter: RateLimiter,
+    /// By system id, the links that learned (or were preloaded with) an address of that
+    /// system, in creation order: the only links a packet targeted at the system can be
+    /// offered without being dropped silently, so that such a packet costs the same
+    /// however many other links there are. Links stay listed while their address
+    /// expires (the decision checks liveness) and leave with the link.
+    by_system: Vec<Vec<LinkId>>,
 }
 
 impl Router {
@@ -99,12 +108,34 @@ impl Router {
         Router {
             filter: Filter::with_cache_slots(config, options.cache_slots),
             links: Vec::new(),
+            ids: Vec::new(),
             next_id: 0,
             options,
             queued_bytes: 0,
             sources: SourceTable::default(),
             sequences: Sequences::default(),
             limiter: RateLimiter::default(),
+            by_system: vec![Vec::new(); 256],
+        }
+    }
+
+    /// Lists link `id` under `system` (see `by_system`).
+    fn index_system(&mut self, system: u8, id: LinkId) {
+        let list = &mut self.by_system[usize::from(system)];
+        if let Err(at) = list.binary_search(&id) {
+            list.insert(at, id);
+        }
+    }
+
+    /// Takes the links of `removed` out of every system's list.
+    fn unindex(&mut self, removed: &[LinkId]) {
+        if removed.is_empty() {
+            return;
+        }
+        let mut removed = removed.to_vec();
+        removed.sort_unstable();
+        for list in &mut self.by_system {
+            list.retain(|id| removed.binary_search(id).is_err());
         }
     }
 
@@ -142,6 +173,7 @@ impl Router {
     fn add_link(&mut self, name: &str, kind: LinkKind, now: Timestamp) -> usize {
         let id = LinkId(self.next_id);
         self.next_id += 1;
+        self.ids.push(id);
         self.links.push(Link::new(
             id,
             name,
@@ -165,6 +197,7 @@ impl Router {
         let i = self.add_link(name, LinkKind::Serial, now);
         let want = self.options.event_level >= 1;
         let link = &mut self.links[i];
+        let id = link.id();
         for &address in preload {
             if link.pool.preload(address) && want {
                 out.events.push(Event::NewComponent {
@@ -173,7 +206,10 @@ impl Router {
                 });
             }
         }
-        link.id()
+        for &address in preload {
+            self.index_system(address.system, id);
+        }
+        id
     }
 
     /// Adds a UDP link for a remote that just sent its first valid frame; `name` is
@@ -203,8 +239,10 @@ impl Router {
             return false;
         };
         let link = self.links.remove(i);
+        self.ids.remove(i);
         self.queued_bytes -= link.queue.bytes();
         self.limiter.forget_link(id);
+        self.unindex(&[id]);
         true
     }
 
@@ -225,7 +263,7 @@ impl Router {
 
     fn index(&self, id: LinkId) -> Option<usize> {
         // Ids grow with creation order and links are kept in that order.
-        self.links.binary_search_by_key(&id, |l| l.id()).ok()
+        self.ids.binary_search(&id).ok()
     }
 
     /// The link `id`, if it exists.
@@ -272,11 +310,14 @@ impl Router {
         self.sequences.count(src, frame.seq());
         let src_link = &mut self.links[si];
         src_link.counters.received(len);
-        if src_link.learn(src, now) && level >= 1 {
-            out.events.push(Event::NewComponent {
-                address: src,
-                link: link_ref(src_link),
-            });
+        if src_link.learn(src, now) {
+            if level >= 1 {
+                out.events.push(Event::NewComponent {
+                    address: src,
+                    link: link_ref(src_link),
+                });
+            }
+            self.index_system(src.system, source);
         }
         let src_ref = (level >= 2).then(|| link_ref(&self.links[si]));
         if let Some(s) = &src_ref {
@@ -289,7 +330,20 @@ impl Router {
         let mut packet: Option<Packet> = None;
         let mut routed = false;
         let mut forwarded = false;
-        for i in 0..self.links.len() {
+        // A packet for a system (S.C or S.0, not the broadcast 0.0) is offered only to
+        // the links that know an address of S: every other link would drop it silently.
+        let system = target
+            .filter(|t| *t != Address::new(0, 0))
+            .map(|t| usize::from(t.system));
+        let offered = system.map_or(self.links.len(), |s| self.by_system[s].len());
+        for k in 0..offered {
+            let i = match system {
+                None => k,
+                Some(s) => match self.index(self.by_system[s][k]) {
+                    Some(i) => i,
+                    None => continue,
+                },
+            };
             let link = &self.links[i];
             let decision = decide(
                 &mut self.filter,
@@ -452,6 +506,10 @@ impl Router {
         for &id in &removed {
             self.limiter.forget_link(id);
         }
+        if !removed.is_empty() {
+            self.ids = self.links.iter().map(Link::id).collect();
+        }
+        self.unindex(&removed);
         removed
     }
 

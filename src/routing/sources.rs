@@ -168,6 +168,10 @@ impl Hasher for IntHasher {
     fn write_u16(&mut self, v: u16) {
         self.0 = u64::from(v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0 ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
 }
 
 /// Sequence gaps per source address; see the module documentation for the rule.

@@ -225,6 +225,17 @@ impl Engine {
             })
             .collect();
         self.config = config.clone();
+        // A reload is rare: every deadline is filed afresh, and every interface gets a
+        // turn to send (a changed pacer may let a held-back packet go).
+        let ids: Vec<InterfaceId> = self
+            .interfaces
+            .iter()
+            .map(|(k, _)| InterfaceId(k))
+            .collect();
+        for id in ids {
+            self.refresh_deadline(id);
+            self.mark_ready(id);
+        }
         self.take_output();
         done
     }
@@ -409,9 +420,11 @@ impl Engine {
             for (link, name) in links {
                 dropped += self.router.clear_queue(link);
                 self.router.remove_link(link);
+                self.owner.remove(&link);
                 self.notices
                     .push_back(Notice::LinkRemoved { id: link, name });
             }
+            self.refresh_deadline(member);
             requests.push(Request::Close(member));
         }
         dropped

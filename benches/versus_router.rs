@@ -1,0 +1,178 @@
+//! mavtables against mavlink-router at the rates vehicles send (issue 19): router CPU
+//! per frame, system calls per frame and latency p50/p99, with a no-router baseline, in
+//! one run.
+//!
+//! Run by hand: `MAVLINK_ROUTER=/path/to/mavlink-routerd cargo bench --bench
+//! versus_router` (without `MAVLINK_ROUTER` it says it was skipped; nothing of
+//! mavlink-router is part of this repository). `MAVTABLES_BEFORE=<path>` adds another
+//! mavtables build. Each router gets a UDP server and a UDP client endpoint to its own
+//! sink: `mavlink-routerd -c <file: [General] TcpServerPort = 0> -t 0 -e 127.0.0.1:SINK
+//! 127.0.0.1:PORT`, and for mavtables the same as a configuration, every frame
+//! accepted. Targeted COMMAND_LONG frames, one datagram each, carry their send time (see
+//! `light/mod.rs`). At 1k and 10k frames/s, 5 rounds (3 s and 1 s) per router, the
+//! order alternating round by round; medians. System calls: `perf stat -e
+//! raw_syscalls:sys_enter,… -p PID` over a separate 3 s window per router and rate,
+//! divided by the frames sent in it (the router's idle wake-ups in the window count).
+
+mod light;
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::PathBuf;
+use std::time::Duration;
+
+use light::{Router, Sink, Trial};
+
+const ROUNDS: usize = 5;
+const RATES: [(f64, Duration); 2] = [
+    (1e3, Duration::from_secs(3)),
+    (10e3, Duration::from_secs(1)),
+];
+
+/// A contestant: a router (None: the generator sends straight to the sink).
+struct Contestant {
+    name: String,
+    router: Option<Router>,
+    sink: Sink,
+    sender: UdpSocket,
+    /// Trials per rate (index into [`RATES`]).
+    trials: [Vec<Trial>; 2],
+    /// System calls and frames sent in the counted window, per rate.
+    syscalls: [Option<(light::Syscalls, u64)>; 2],
+}
+
+impl Contestant {
+    fn new(name: &str, start: impl FnOnce(u16) -> Result<Router, String>) -> Result<Self, String> {
+        let sink = Sink::new().map_err(|e| e.to_string())?;
+        let router = start(sink.port())?;
+        Contestant::with(name, Some(router), sink)
+    }
+
+    fn with(name: &str, router: Option<Router>, sink: Sink) -> Result<Self, String> {
+        let sender = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
+        light::handshake(&sender, router.as_ref().map(|r| r.udp), &sink)?;
+        Ok(Contestant {
+            name: name.to_string(),
+            router,
+            sink,
+            sender,
+            trials: [Vec::new(), Vec::new()],
+            syscalls: [None, None],
+        })
+    }
+
+    fn to(&self) -> Option<SocketAddr> {
+        self.router.as_ref().map(|r| r.udp)
+    }
+
+    fn pid(&self) -> Option<u32> {
+        self.router.as_ref().map(Router::pid)
+    }
+}
+
+fn main() {
+    if !light::benchmarking() {
+        return;
+    }
+    let Some(routerd) = std::env::var_os("MAVLINK_ROUTER").map(PathBuf::from) else {
+        println!("versus_router: skipped (set MAVLINK_ROUTER to a mavlink-routerd binary)");
+        return;
+    };
+    let exe = std::env::var_os("MAVTABLES_BENCH_ROUTER").map_or_else(
+        || PathBuf::from(env!("CARGO_BIN_EXE_mavtables")),
+        PathBuf::from,
+    );
+    let mut all = Vec::new();
+    let direct = Sink::new()
+        .map_err(|e| e.to_string())
+        .and_then(|sink| Contestant::with("no router", None, sink));
+    all.push(direct);
+    if let Some(before) = std::env::var_os("MAVTABLES_BEFORE").map(PathBuf::from) {
+        all.push(Contestant::new("mavtables before", |sink| {
+            Router::mavtables("before", &before, sink, false)
+        }));
+    }
+    all.push(Contestant::new("mavtables", |sink| {
+        Router::mavtables("mavtables", &exe, sink, false)
+    }));
+    all.push(Contestant::new("mavlink-router", |sink| {
+        Router::mavlink_router("mavlink-router", &routerd, sink)
+    }));
+    let mut contestants = Vec::new();
+    for c in all {
+        match c {
+            Ok(c) => contestants.push(c),
+            Err(e) => {
+                println!("versus_router: {e}");
+                return;
+            }
+        }
+    }
+    println!(
+        "versus mavlink-router: {ROUNDS} rounds per rate and router, alternating; {} CPUs",
+        std::thread::available_parallelism().map_or(0, |n| n.get())
+    );
+    for (r, &(rate, duration)) in RATES.iter().enumerate() {
+        for round in 0..ROUNDS {
+            let n = contestants.len();
+            for k in 0..n {
+                let i = if round % 2 == 0 { k } else { n - 1 - k };
+                let c = &mut contestants[i];
+                let t = light::trial(&c.sender, c.to(), &c.sink, rate, duration, c.pid());
+                c.trials[r].push(t);
+            }
+        }
+        for c in &mut contestants {
+            let Some(pid) = c.pid() else {
+                continue;
+            };
+            let mut sent = 0;
+            let (sender, to, sink) = (&c.sender, c.to(), &c.sink);
+            let calls = light::syscalls_during(pid, || {
+                sent = light::trial(sender, to, sink, rate, Duration::from_secs(3), None).sent;
+            });
+            c.syscalls[r] = calls.map(|n| (n, sent.max(1)));
+        }
+    }
+    for (r, &(rate, _)) in RATES.iter().enumerate() {
+        println!(
+            "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame (epoll_wait/frame, timerfd_settime/s) | context switches/frame (migrations/s) | latency p50 / p99 (medians) | received |",
+            rate as u64
+        );
+        println!("|---|---:|---:|---:|---|---:|");
+        for c in &contestants {
+            let trials = &c.trials[r];
+            let cpu: Vec<f64> = trials.iter().filter_map(Trial::cpu_per_frame_us).collect();
+            let lo = cpu.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = cpu.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let cpu_text = if cpu.is_empty() {
+                "–".to_string()
+            } else {
+                format!("{:.2} µs [{lo:.2}–{hi:.2}]", light::median(cpu))
+            };
+            let p50 = light::median(trials.iter().map(|t| t.latency_us(0.5)).collect());
+            let p99 = light::median(trials.iter().map(|t| t.latency_us(0.99)).collect());
+            let sent: u64 = trials.iter().map(|t| t.sent).sum();
+            let received: u64 = trials.iter().map(|t| t.received).sum();
+            println!(
+                "| {} | {cpu_text} | {} | {} | {p50:.1} / {p99:.1} µs | {received}/{sent} |",
+                c.name,
+                c.syscalls[r].map_or("–".to_string(), |(s, sent)| {
+                    let per_s = rate / sent as f64;
+                    format!(
+                        "{:.2} ({:.2}, {:.1})",
+                        s.total as f64 / sent as f64,
+                        s.epoll_wait as f64 / sent as f64,
+                        s.timer_settime as f64 * per_s
+                    )
+                }),
+                c.syscalls[r].map_or("–".to_string(), |(s, sent)| {
+                    format!(
+                        "{:.2} ({:.1})",
+                        s.context_switches as f64 / sent as f64,
+                        s.migrations as f64 * rate / sent as f64
+                    )
+                }),
+            );
+        }
+    }
+}
