@@ -1,7 +1,7 @@
 //! Loading MAVLink XML dialect files at run time, with their `<include>`s, on top of the
 //! built-in `ardupilotmega` table.
 //!
-//! Each file is read through [`crate::files::read_regular`] (a regular file of at most
+//! Each file is read through `crate::files::read_regular` (a regular file of at most
 //! [`DIALECT_FILE_LIMIT`] bytes; [`MAX_FILES`] files in all), parsed by [`super::xml`]
 //! and laid out by [`super::layout`]. A message that the built-in table (or an earlier
 //! file) already has with the same name and CRC_EXTRA is the same message and adds

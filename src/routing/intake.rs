@@ -6,8 +6,8 @@
 use std::collections::{HashSet, VecDeque};
 use std::net::SocketAddr;
 
-use super::engine::Notice;
 use super::link::LinkId;
+use super::notice::Notice;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
 use crate::recording::Tap;

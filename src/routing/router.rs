@@ -513,8 +513,8 @@ impl Router {
         removed
     }
 
-    /// Live rate-capped streams forgotten because their table was full (see
-    /// [`RateLimiter`]).
+    /// Live rate-capped streams forgotten because their table was full (the table
+    /// holds a bounded number of streams).
     pub fn rate_streams_evicted(&self) -> u64 {
         self.limiter.evicted()
     }

@@ -147,13 +147,13 @@ impl Engine {
         };
         // A changed dialect may give a message name another id: the filter is rebuilt.
         if !rules.unchanged || parsing_changed {
-            let counts = carried_counts(&self.router.filter_counts(), &rules);
-            self.router.replace_filter(config, &counts);
+            let counts = carried_counts(&self.core.router.filter_counts(), &rules);
+            self.core.router.replace_filter(config, &counts);
             self.rules = RuleBook::new(config);
         }
         if self.config.queue != config.queue {
             let d = RouterOptions::default();
-            self.router.set_queue_bounds(
+            self.core.router.set_queue_bounds(
                 config.queue.link_bytes.unwrap_or(d.queue_capacity),
                 config.queue.total_bytes.unwrap_or(d.total_queue_capacity),
             );
@@ -339,7 +339,7 @@ impl Engine {
             Interface::Serial(s) => (s.max_bitrate, None),
         };
         let signing = iface.signing().zip(key).map(|(s, key)| {
-            let slot = self.signing.add_key(key.clone());
+            let slot = self.core.signing.add_key(key.clone());
             (slot, s.allow_unsigned)
         });
         let family = self.family(id);
@@ -418,10 +418,11 @@ impl Engine {
                 Kind::Listener { .. } => Vec::new(),
             };
             for (link, name) in links {
-                dropped += self.router.clear_queue(link);
-                self.router.remove_link(link);
+                dropped += self.core.router.clear_queue(link);
+                self.core.router.remove_link(link);
                 self.owner.remove(&link);
-                self.notices
+                self.core
+                    .notices
                     .push_back(Notice::LinkRemoved { id: link, name });
             }
             self.refresh_deadline(member);

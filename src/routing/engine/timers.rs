@@ -1,0 +1,110 @@
+//! Time: the next deadline and what runs when it comes (the expiry tick, stale
+//! held-back bytes, pacing, reopening).
+
+use super::*;
+
+impl Engine {
+    /// The next instant something is due: the expiry tick, held-back bytes turning
+    /// stale, a packet the pacer holds back, or opening an interface again. Its cost
+    /// does not grow with the number of interfaces (the deadlines are kept in order).
+    pub fn poll_timeout(&self) -> Timestamp {
+        self.deadlines
+            .first()
+            .map_or(self.next_tick, |t| t.min(self.next_tick))
+    }
+
+    /// Runs what is due at `now` (see [`Engine::poll_timeout`]). Calling it early, or
+    /// more than once, is harmless: only what is due runs, and only the interfaces
+    /// whose deadline passed are visited.
+    pub fn handle_timeout(&mut self, now: Timestamp) {
+        let mut due = std::mem::take(&mut self.due);
+        self.deadlines.take_due(now, &mut due);
+        for &id in &due {
+            self.handle_interface_timeout(id, now);
+            self.refresh_deadline(id);
+        }
+        due.clear();
+        self.due = due;
+        if now >= self.next_tick {
+            for id in self.core.router.tick(now) {
+                self.forget(id);
+            }
+            self.next_tick = now + TICK;
+        }
+        self.take_output();
+    }
+
+    /// Runs what is due at `now` on interface `id`: lets the pacer's held-back packet
+    /// go, asks for a reopen, or gives up on held-back bytes.
+    pub(super) fn handle_interface_timeout(&mut self, id: InterfaceId, now: Timestamp) {
+        let Some(interface) = self.interfaces.get_mut(id.0) else {
+            return;
+        };
+        if interface.pace_deadline.is_some_and(|t| t <= now) {
+            // The pacer decides afresh when the loop polls for transmits.
+            interface.pace_deadline = None;
+            self.ready.mark(id);
+        }
+        let open = interface.is_open();
+        if let Some(connection) = interface.connection_mut()
+            && connection.ask_if_due(now)
+        {
+            self.core.notices.push_back(Notice::Open(id));
+        }
+        let Interface {
+            parser,
+            tail,
+            kind,
+            signing: edge,
+            described,
+            ..
+        } = interface;
+        let stale = open
+            && tail
+                .deadline(parser.pending_len())
+                .is_some_and(|t| t <= now);
+        if !stale {
+            return;
+        }
+        let sender = match kind {
+            Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
+                Some(Sender::Stream(*link))
+            }
+            Kind::Datagram {
+                remotes,
+                last_sender,
+                ..
+            } => last_sender.map(|address| Sender::Remote {
+                link: remotes.link_of(address),
+                remotes,
+                address,
+            }),
+            Kind::Listener { .. } => None,
+        };
+        let Some(sender) = sender else {
+            return;
+        };
+        // The candidate is rejected and the bytes behind its start scanned again, so
+        // valid frames held up behind noise are routed now.
+        let mut intake = self.core.intake(now, sender, edge.as_mut(), described);
+        parser.finish(&mut intake);
+        let link = intake.existing_link();
+        self.adopt_link(link, id);
+    }
+
+    /// Forgets the peer of a link the router removed.
+    pub(super) fn forget(&mut self, id: LinkId) {
+        for (_, interface) in &mut self.interfaces {
+            if let Kind::Datagram { remotes, .. } = &mut interface.kind
+                && let Some(address) = remotes.remove(id)
+            {
+                self.owner.remove(&id);
+                self.core.notices.push_back(Notice::LinkRemoved {
+                    id,
+                    name: address.to_string(),
+                });
+                return;
+            }
+        }
+    }
+}
