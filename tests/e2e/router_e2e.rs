@@ -104,6 +104,12 @@ fn from_source(received: &[Received], source: &str) -> Vec<String> {
 
 const REJECT_HEARTBEAT_ACCEPT: &str = "chain default {\n    reject if HEARTBEAT;\n    accept;\n}\n";
 
+/// [`REJECT_HEARTBEAT_ACCEPT`] that also forwards SETUP_SIGNING, which a rule must name
+/// to be forwarded (it carries a signing key in the clear): for the tests that send every
+/// message type.
+const EVERY_MESSAGE_BUT_HEARTBEAT: &str =
+    "chain default {\n    reject if HEARTBEAT;\n    accept if SETUP_SIGNING;\n    accept;\n}\n";
+
 fn udp_block(port: u16, extra: &str) -> String {
     format!("udp {{ port {port}; address 127.0.0.1; {extra}}}\n")
 }
@@ -242,7 +248,7 @@ fn every_message(sender_on_serial: bool, v1: bool) {
     if sender_on_serial {
         config += &serial_block(&send_dev, "");
     }
-    config += REJECT_HEARTBEAT_ACCEPT;
+    config += EVERY_MESSAGE_BUT_HEARTBEAT;
 
     // Serial peers first: their ptys exist before the router opens the devices.
     let mut serial_listener = listener(&pty(&listen_dev), "29.39", list.len(), &[]);
@@ -310,7 +316,7 @@ fn multiple_senders_at_once() {
     let config = udp_block(port, "")
         + &serial_block(&listen_dev, "")
         + &serial_block(&send_dev, "")
-        + REJECT_HEARTBEAT_ACCEPT;
+        + EVERY_MESSAGE_BUT_HEARTBEAT;
     let total = 2 * v2_names.len() + v1_names.len();
     let mut serial_listener = listener(&pty(&listen_dev), "10.20", total, &[]);
     let mut serial_sender = sender(&pty(&send_dev), "127.1", &[], &v2_names);
