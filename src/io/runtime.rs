@@ -36,7 +36,6 @@ use crate::recording::{RecordFilter, RecorderStats};
 use crate::routing::{Engine, InterfaceId, Notice, Request, RouterOptions, Timestamp};
 use crate::signing::SigningKey;
 use crate::signing::clock::units_from_unix;
-use crate::signing::state::SAVE_INTERVAL_SECS;
 
 /// Token of the signal pipe (driver tokens are slab keys, far below).
 const SIGNALS: Token = Token(usize::MAX - 1);
@@ -46,10 +45,6 @@ const TIMER: Token = Token(usize::MAX - 2);
 const WAKER: Token = Token(usize::MAX - 3);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
-/// How often a statistics snapshot is published.
-const STATS_INTERVAL: Duration = Duration::from_secs(1);
-/// How early a snapshot may be taken.
-const STATS_SLACK: Duration = Duration::from_millis(50);
 /// How long the log output may take to drain at exit.
 const LOG_DRAIN: Duration = Duration::from_secs(1);
 /// How long the recorder may take to write its last records and close its file at exit.
@@ -95,14 +90,10 @@ struct Runtime {
     start: Instant,
     /// Where the signing state is saved (only when some interface has a key).
     state_file: Option<StateFile>,
-    /// When the signing state is saved next if it changed.
-    next_state_save: Timestamp,
     /// The recorder, when the configuration has a `record` block.
     recorder: Option<Recorder>,
     /// The statistics endpoint, if configured.
     stats: Option<StatsServer>,
-    /// When the next statistics snapshot is due.
-    next_stats: Timestamp,
     /// Rung by look-ups of host names; drivers of clients added by a reload get it too.
     waker: Arc<Waker>,
     /// The configuration file SIGHUP reads again (None: command-line endpoints).
@@ -118,34 +109,19 @@ impl Runtime {
         Timestamp::new(self.start.elapsed())
     }
 
-    /// Tells the core the wall clock (for signature timestamps) and saves the signing
-    /// state if it changed and the last save is [`SAVE_INTERVAL_SECS`] old.
-    fn keep_signing_state(&mut self, now: Timestamp) {
-        let Some(file) = &self.state_file else {
-            return;
-        };
-        self.engine.set_wall_clock(now, wall_clock());
-        if now < self.next_state_save {
-            return;
-        }
-        self.next_state_save = now + Duration::from_secs(SAVE_INTERVAL_SECS);
-        if let Some(state) = self.engine.signing_state(false) {
-            file.save(&state);
+    /// Tells the core the wall clock, for signature timestamps (when it signs).
+    fn tell_wall_clock(&mut self, now: Timestamp) {
+        if self.state_file.is_some() {
+            self.engine.set_wall_clock(now, wall_clock());
         }
     }
 
-    /// Publishes a statistics snapshot to the endpoint when one is due (about once a
-    /// second; the core's one-second tick wakes the loop for it).
+    /// Publishes a statistics snapshot to the endpoint (the core says when: once a
+    /// second, with its tick).
     fn publish_stats(&mut self, now: Timestamp) {
         let Some(server) = &self.stats else {
             return;
         };
-        // A little early rather than a whole tick late: the tick and this deadline
-        // fall in the same wake-up.
-        if now + STATS_SLACK < self.next_stats {
-            return;
-        }
-        self.next_stats = now + STATS_INTERVAL;
         let mut snapshot = self.engine.stats(now);
         snapshot.recording = self.recorder_stats();
         server.publish(snapshot);
@@ -402,6 +378,12 @@ impl Runtime {
                 Notice::LinkAdded { .. } | Notice::LinkRemoved { .. } => {}
                 Notice::Open(interface) => self.open(interface, now),
                 Notice::Closed(interface) => self.remove(interface),
+                Notice::PublishStats => self.publish_stats(now),
+                Notice::SaveSigningState(state) => {
+                    if let Some(file) = &self.state_file {
+                        file.save(&state);
+                    }
+                }
             }
         }
     }
@@ -545,12 +527,11 @@ impl Runtime {
             if stop_by.is_none() {
                 self.receive_readable(now);
             }
-            self.keep_signing_state(now);
+            self.tell_wall_clock(now);
             self.feed_watchdog(now);
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
-            self.publish_stats(now);
             self.handle_notices(now);
             self.record();
             self.flush_ready(now);
@@ -737,10 +718,8 @@ fn start(
         logger,
         start,
         state_file,
-        next_state_save: Timestamp::ZERO,
         recorder,
         stats,
-        next_stats: Timestamp::ZERO,
         waker,
         source: source.map(str::to_string),
         notifier,

@@ -6,6 +6,7 @@
 use super::event::Event;
 use super::interface::InterfaceId;
 use super::link::LinkId;
+use crate::signing::state::SavedState;
 
 /// Something the core tells the event loop: lines for the operator, links that came and
 /// went, and streams to open.
@@ -39,4 +40,10 @@ pub enum Notice {
     Open(InterfaceId),
     /// The accepted connection was removed (it closed): drop its driver.
     Closed(InterfaceId),
+    /// A statistics snapshot is due (once a second, when the configuration has a `stats`
+    /// block): take [`Engine::stats`](super::Engine::stats) and publish it.
+    PublishStats,
+    /// The signing state changed since it was last saved (said at most once a second):
+    /// write it to the state file.
+    SaveSigningState(Box<SavedState>),
 }

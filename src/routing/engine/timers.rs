@@ -1,7 +1,13 @@
-//! Time: the next deadline and what runs when it comes (the expiry tick, stale
+//! Time: the next deadline and what runs when it comes (the expiry tick — with the
+//! once-a-second statistics snapshot and signing-state save it schedules — stale
 //! held-back bytes, pacing, reopening).
 
 use super::*;
+use crate::signing::state::SAVE_INTERVAL_SECS;
+
+// The signing state is saved with the tick: the crash margin of a saved state assumes
+// saves at most SAVE_INTERVAL_SECS apart.
+const _: () = assert!(TICK.as_secs() == SAVE_INTERVAL_SECS && TICK.subsec_nanos() == 0);
 
 impl Engine {
     /// The next instant something is due: the expiry tick, held-back bytes turning
@@ -30,6 +36,15 @@ impl Engine {
                 self.forget(id);
             }
             self.next_tick = now + TICK;
+            // What the event loop does once a second, scheduled here with the tick.
+            if self.config.stats.is_some() {
+                self.core.notices.push_back(Notice::PublishStats);
+            }
+            if let Some(state) = self.core.signing.take_state(false) {
+                self.core
+                    .notices
+                    .push_back(Notice::SaveSigningState(Box::new(state)));
+            }
         }
         self.take_output();
     }
