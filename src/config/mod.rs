@@ -34,8 +34,9 @@ pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::{
     Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
-    DefaultAction, Heartbeat, Host, Interface, InterfaceGroup, InterfaceSigning, IpRange, PeerLimits, QueueBounds, Recording,
-    Remote, Rule, SIGNING_STATE_FILE, SerialInterface, StatsEndpoint, TcpInterface, UdpInterface,
+    DefaultAction, Heartbeat, Host, Interface, InterfaceGroup, InterfaceSigning, IpRange,
+    PeerLimits, QueueBounds, Recording, Remote, Rule, SIGNING_STATE_FILE, SerialInterface,
+    StatsEndpoint, TcpInterface, UdpInterface,
 };
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};

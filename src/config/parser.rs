@@ -511,9 +511,7 @@ impl<'a> Parser<'a> {
             }
             "interval" => {
                 self.c.word();
-                HeartbeatSetting::Interval(
-                    self.duration("expected a duration, e.g. 1s or 500ms")?,
-                )
+                HeartbeatSetting::Interval(self.duration("expected a duration, e.g. 1s or 500ms")?)
             }
             _ => return Err(unsupported(span, word, HEARTBEAT_STATEMENTS)),
         };

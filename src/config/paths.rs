@@ -54,7 +54,9 @@ pub struct InterfaceGroup {
 
 /// `text` as a duration: a whole number and a unit `ms`, `s` or `min`.
 pub(crate) fn duration(text: &str) -> Result<Duration, String> {
-    let digits = text.find(|c: char| !c.is_ascii_digit()).unwrap_or(text.len());
+    let digits = text
+        .find(|c: char| !c.is_ascii_digit())
+        .unwrap_or(text.len());
     let (number, unit) = text.split_at(digits);
     let n: u64 = number
         .parse()
@@ -129,14 +131,12 @@ pub(crate) fn heartbeat(
                 Ok(n) => hb.system = n as u8,
                 Err(m) => fail(Diagnostic::new(v, m)),
             },
-            HeartbeatSetting::Component(v) => match ranged(ast.text(v), 1, 255, "component id")
-            {
+            HeartbeatSetting::Component(v) => match ranged(ast.text(v), 1, 255, "component id") {
                 Ok(n) => hb.component = n as u8,
                 Err(m) => fail(Diagnostic::new(v, m)),
             },
             HeartbeatSetting::Interval(v) => {
-                match ranged_duration(ast, v, MIN_HEARTBEAT, MAX_HEARTBEAT, "heartbeat interval")
-                {
+                match ranged_duration(ast, v, MIN_HEARTBEAT, MAX_HEARTBEAT, "heartbeat interval") {
                     Ok(d) => hb.interval = d,
                     Err(d) => fail(d),
                 }
@@ -173,7 +173,9 @@ pub(crate) fn lonely_groups(groups: &[InterfaceGroup]) -> Vec<String> {
         .into_iter()
         .filter(|(_, n)| *n == 1)
         .map(|(name, _)| {
-            format!("group '{name}' has one interface: a group joins two or more paths to a vehicle")
+            format!(
+                "group '{name}' has one interface: a group joins two or more paths to a vehicle"
+            )
         })
         .collect()
 }

@@ -24,6 +24,7 @@
 //! counter. The routing decisions themselves are the [`Router`]'s.
 
 mod configure;
+mod paths;
 
 use std::collections::VecDeque;
 use std::fmt::Display;
@@ -39,6 +40,7 @@ use super::event::Event;
 use super::intake::{Intake, Sender, UnknownIds};
 use super::interface::{InterfaceId, Kind, LiveInterface as Interface, Reopen};
 use super::link::LinkId;
+use super::own_heartbeat::OwnHeartbeat;
 use super::pacer::Pace;
 use super::queue::Packet;
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF};
@@ -132,6 +134,8 @@ pub struct Engine {
     config: Config,
     /// The core's interface and the signing key of each of `config.interfaces`.
     configured: Vec<configure::Configured>,
+    /// The router's own heartbeat, when configured.
+    heartbeat: Option<OwnHeartbeat>,
 }
 
 impl Engine {
@@ -153,6 +157,7 @@ impl Engine {
                 ..config.clone()
             },
             configured: Vec::new(),
+            heartbeat: None,
         }
     }
 
@@ -318,8 +323,10 @@ impl Engine {
         *connections += 1;
         let max_bitrate = *max_bitrate;
         let edge = server.signing.as_ref().map(Edge::fresh_copy);
+        let group = server.group;
         let name = format!("tcp:{peer}");
         let link = self.router.add_connection_link(&name, now);
+        self.router.set_group(link, group);
         self.notices.push_back(Notice::LinkAdded {
             id: link,
             name: name.clone(),
@@ -330,6 +337,7 @@ impl Engine {
             Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),
         );
         connection.signing = edge;
+        connection.group = group;
         Some(self.push_interface(connection))
     }
 
@@ -436,6 +444,7 @@ impl Engine {
             refused,
             described,
             signing: edge,
+            group,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
@@ -495,6 +504,7 @@ impl Engine {
             signing: &mut self.signing,
             described,
             tap: self.tap.as_mut(),
+            group: *group,
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -509,6 +519,7 @@ impl Engine {
             kind,
             signing: edge,
             described,
+            group,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
@@ -534,6 +545,7 @@ impl Engine {
             signing: &mut self.signing,
             described,
             tap: self.tap.as_mut(),
+            group: *group,
         };
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
@@ -848,6 +860,9 @@ impl Engine {
                 due = due.min(t);
             }
         }
+        if let Some(h) = &self.heartbeat {
+            due = due.min(h.due());
+        }
         due
     }
 
@@ -870,6 +885,7 @@ impl Engine {
                 kind,
                 signing: edge,
                 described,
+                group,
                 ..
             } = interface;
             let stale = open
@@ -908,9 +924,11 @@ impl Engine {
                     signing: &mut self.signing,
                     described,
                     tap: self.tap.as_mut(),
+                    group: *group,
                 });
             }
         }
+        self.send_heartbeat(now);
         if now >= self.next_tick {
             for id in self.router.tick(now) {
                 self.forget(id);

@@ -23,12 +23,14 @@
 
 pub(crate) mod admission;
 pub(crate) mod counters;
+pub(crate) mod dedup;
 pub(crate) mod dispatch;
 pub(crate) mod engine;
 pub(crate) mod event;
 pub(crate) mod intake;
 pub(crate) mod interface;
 pub(crate) mod link;
+pub(crate) mod own_heartbeat;
 pub(crate) mod pacer;
 pub(crate) mod pool;
 pub(crate) mod queue;
@@ -47,7 +49,7 @@ pub use dispatch::Decision;
 pub use engine::{Engine, FORGET_AFTER, Notice, Reconfigured, Request, SEND_TURN, Transmit};
 pub use event::{Event, LinkRef, PacketSummary};
 pub use interface::InterfaceId;
-pub use link::{Link, LinkId, LinkKind};
+pub use link::{GroupId, Link, LinkId, LinkKind};
 pub use pacer::{Pace, Pacer};
 pub use pool::AddressPool;
 pub use queue::{Packet, PacketQueue, PushOutcome};
