@@ -20,6 +20,7 @@ mod rate_caps;
 mod routing_cases;
 mod routing_engine;
 mod routing_queues_props;
+mod routing_redundancy;
 mod routing_scenarios;
 mod routing_signing;
 mod wire_properties;
