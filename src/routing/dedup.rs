@@ -17,7 +17,7 @@ use std::time::Duration;
 
 use crate::time::Timestamp;
 
-/// Most hashes remembered at once (about 1.5 MiB at the most): 65,536 frames, over
+/// Most hashes remembered at once (a few MiB at the most): 65,536 frames, over
 /// 100 seconds of a busy vehicle's 600 frames per second.
 pub const MAX_ENTRIES: usize = 65_536;
 
