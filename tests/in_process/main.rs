@@ -11,6 +11,7 @@ mod config_ast;
 mod config_errors;
 mod config_model;
 mod config_network;
+mod config_paths;
 mod config_props;
 mod config_rates;
 mod dialect_crosscheck;
