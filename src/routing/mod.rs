@@ -13,7 +13,11 @@
 //!   peers (`remotes`: peer ↔ link and the round robin), for a stream its
 //!   `reconnect` backoff;
 //! - `intake`: frames from a parser into the router (links created on a peer's first
-//!   valid frame, unknown ids reported once);
+//!   valid frame, unknown ids reported once, copies within the `dedup` window dropped
+//!   first: `dedup`);
+//! - `router::redundancy`: `group`s of links that are one path to a vehicle, and the
+//!   router's own address; `own_heartbeat`: the `heartbeat` block's frames, on the
+//!   core's own deadline;
 //! - `reload`: what a new configuration changes (interfaces matched by identity, rules
 //!   by text), which [`Engine::configure`] applies at start and at every reload;
 //! - `link`, `pool` (addresses with expiry), `counters`, `event` (log events and
