@@ -12,7 +12,7 @@
 
 use std::collections::hash_map::RandomState;
 use std::collections::{HashMap, VecDeque};
-use std::hash::BuildHasher;
+use std::hash::{BuildHasher, BuildHasherDefault, Hasher};
 use std::time::Duration;
 
 use crate::time::Timestamp;
@@ -29,7 +29,28 @@ pub struct Dedup {
     /// Hashes in order of arrival, with their time.
     ring: VecDeque<(Timestamp, u64)>,
     /// Each hash in the ring, with the time of its latest entry.
-    latest: HashMap<u64, Timestamp>,
+    latest: HashMap<u64, Timestamp, BuildHasherDefault<Prehashed>>,
+}
+
+/// The map's hasher: its keys are keyed hashes already, uniform in every bit, so they
+/// are used as they are (hashing them again would double the cost of a look-up).
+#[derive(Debug, Default)]
+struct Prehashed(u64);
+
+impl Hasher for Prehashed {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = self.0.rotate_left(8) ^ u64::from(b);
+        }
+    }
+
+    fn write_u64(&mut self, n: u64) {
+        self.0 = n;
+    }
 }
 
 impl Default for Dedup {
@@ -38,7 +59,7 @@ impl Default for Dedup {
             window: None,
             keys: RandomState::new(),
             ring: VecDeque::new(),
-            latest: HashMap::new(),
+            latest: HashMap::default(),
         }
     }
 }
@@ -50,7 +71,7 @@ impl Dedup {
         self.window = window;
         if window.is_none() {
             self.ring = VecDeque::new();
-            self.latest = HashMap::new();
+            self.latest = HashMap::default();
         }
     }
 
