@@ -210,3 +210,31 @@ fn a_reload_changes_the_interval_and_one_without_the_block_stops_it() {
     e.configure(&none, &[None], Timestamp::from_millis(200));
     assert!(e.poll_timeout() > Timestamp::from_millis(250));
 }
+
+#[test]
+fn a_reload_takes_the_new_groups_for_links_already_there() {
+    let (mut e, ports) = start(RADIOS);
+    let (a, b) = (ports[&14550], ports[&14551]);
+    let now = Timestamp::from_secs(1);
+    e.handle_datagram(a, peer(1), &heartbeat("1.1", 1), now);
+    e.handle_datagram(b, peer(2), &heartbeat("1.1", 2), now);
+    let groups =
+        |e: &Engine| -> Vec<bool> { e.router().links().map(|l| l.group().is_some()).collect() };
+    assert_eq!(groups(&e), vec![true, true]);
+    let ungrouped = config::load(&RADIOS.replace(" group radios;", ""))
+        .expect("loads")
+        .config;
+    let done = e.configure(&ungrouped, &[None, None, None], now);
+    assert!(
+        done.requests.is_empty(),
+        "nothing reopened: {:?}",
+        done.requests
+    );
+    assert_eq!(groups(&e), vec![false, false]);
+    e.configure(
+        &config::load(RADIOS).expect("loads").config,
+        &[None, None, None],
+        now,
+    );
+    assert_eq!(groups(&e), vec![true, true]);
+}
