@@ -99,6 +99,21 @@ pub enum Item {
         /// True for `accept`.
         accept: bool,
     },
+    /// `dedup DURATION;`: frames byte-identical to one received within the window are
+    /// dropped.
+    Dedup {
+        /// The `dedup` keyword.
+        keyword: Span,
+        /// The duration, as written (`500ms`).
+        value: Span,
+    },
+    /// `heartbeat { ... }`: the router's own HEARTBEAT.
+    Heartbeat {
+        /// The `heartbeat` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<HeartbeatSetting>,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.
@@ -143,6 +158,19 @@ pub enum SocketSetting {
     SigningKey(Span),
     /// `allow_unsigned yes|no;`
     AllowUnsigned(YesNo),
+    /// `group NAME;`: the interface is one path to a vehicle with the group's others.
+    Group(Span),
+}
+
+/// A statement of a `heartbeat` block; each span covers the value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeartbeatSetting {
+    /// `system N;`
+    System(Span),
+    /// `component N;`
+    Component(Span),
+    /// `interval DURATION;`
+    Interval(Span),
 }
 
 /// A written `yes` or `no` after a statement keyword.
@@ -217,6 +245,8 @@ pub enum SerialSetting {
     SigningKey(Span),
     /// `allow_unsigned yes|no;`
     AllowUnsigned(YesNo),
+    /// `group NAME;`
+    Group(Span),
 }
 
 /// A written MAVLink address `S.C`.

@@ -17,6 +17,7 @@ pub(crate) mod lines;
 pub(crate) mod model;
 pub(crate) mod net;
 pub(crate) mod parser;
+pub(crate) mod paths;
 pub(crate) mod printer;
 pub(crate) mod rate;
 pub(crate) mod record_path;
@@ -33,8 +34,9 @@ pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::{
     Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
-    DefaultAction, Host, Interface, InterfaceSigning, IpRange, PeerLimits, QueueBounds, Recording,
-    Remote, Rule, SIGNING_STATE_FILE, SerialInterface, StatsEndpoint, TcpInterface, UdpInterface,
+    DefaultAction, Heartbeat, Host, Interface, InterfaceGroup, InterfaceSigning, IpRange,
+    PeerLimits, QueueBounds, Recording, Remote, Rule, SIGNING_STATE_FILE, SerialInterface,
+    StatsEndpoint, TcpInterface, UdpInterface,
 };
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};

@@ -8,7 +8,9 @@ use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
 pub use super::net::{Host, IpRange, Remote};
+pub use super::paths::{Heartbeat, InterfaceGroup};
 pub use super::rate::Rate;
+use std::time::Duration;
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -36,6 +38,13 @@ pub struct Config {
     pub dialect_files: Vec<PathBuf>,
     /// What becomes of frames whose id no dialect defines (`unknown_messages`).
     pub unknown_messages: UnknownMessages,
+    /// `dedup DURATION;`: a frame byte-identical to one received within this window
+    /// (on any link) is dropped; `None`: no deduplication.
+    pub dedup: Option<Duration>,
+    /// The `group NAME;` statements of interface blocks, in file order.
+    pub groups: Vec<InterfaceGroup>,
+    /// The router's own heartbeat (the `heartbeat` block), if configured.
+    pub heartbeat: Option<Heartbeat>,
 }
 
 /// `unknown_messages accept|reject;`.
@@ -69,6 +78,9 @@ impl Config {
             dialect: Dialect::builtin(),
             dialect_files: Vec::new(),
             unknown_messages: UnknownMessages::Reject,
+            dedup: None,
+            groups: Vec::new(),
+            heartbeat: None,
         }
     }
 

@@ -22,6 +22,8 @@ const TOP_LEVEL: &[&str] = &[
     "stats",
     "dialect",
     "unknown_messages",
+    "dedup",
+    "heartbeat",
 ];
 const STATS_STATEMENTS: &[&str] = &["address", "port", "allow"];
 const UDP_STATEMENTS: &[&str] = &[
@@ -33,6 +35,7 @@ const UDP_STATEMENTS: &[&str] = &[
     "allow",
     "signing_key",
     "allow_unsigned",
+    "group",
 ];
 const SERIAL_STATEMENTS: &[&str] = &[
     "device",
@@ -42,8 +45,10 @@ const SERIAL_STATEMENTS: &[&str] = &[
     "max_bitrate",
     "signing_key",
     "allow_unsigned",
+    "group",
 ];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
+const HEARTBEAT_STATEMENTS: &[&str] = &["system", "component", "interval"];
 const RECORD_STATEMENTS: &[&str] = &[
     "path",
     "max_file_bytes",
@@ -219,6 +224,23 @@ impl<'a> Parser<'a> {
                     settings,
                 })
             }
+            "dedup" => {
+                self.c.word();
+                let value = self.duration("expected a duration, e.g. 500ms or 1s")?;
+                self.semicolon(false)?;
+                Ok(Item::Dedup {
+                    keyword: span,
+                    value,
+                })
+            }
+            "heartbeat" => {
+                self.c.word();
+                let settings = self.block(span, Self::heartbeat_setting)?;
+                Ok(Item::Heartbeat {
+                    keyword: span,
+                    settings,
+                })
+            }
             "chain" => {
                 self.c.word();
                 let name = self.chain_name()?;
@@ -303,6 +325,10 @@ impl<'a> Parser<'a> {
             "allow_unsigned" => {
                 self.c.word();
                 SocketSetting::AllowUnsigned(self.yes_no(span)?)
+            }
+            "group" => {
+                self.c.word();
+                SocketSetting::Group(self.group_name()?)
             }
             _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
         };
@@ -401,6 +427,10 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 SerialSetting::AllowUnsigned(self.yes_no(span)?)
             }
+            "group" => {
+                self.c.word();
+                SerialSetting::Group(self.group_name()?)
+            }
             _ => return Err(unsupported(span, word, SERIAL_STATEMENTS)),
         };
         self.semicolon(false)?;
@@ -462,6 +492,58 @@ impl<'a> Parser<'a> {
         };
         self.semicolon(false)?;
         Ok(setting)
+    }
+
+    /// A statement of a `heartbeat` block.
+    fn heartbeat_setting(&mut self) -> Result<HeartbeatSetting> {
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "system" => {
+                self.c.word();
+                HeartbeatSetting::System(self.number("expected a valid system id")?)
+            }
+            "component" => {
+                self.c.word();
+                HeartbeatSetting::Component(self.number("expected a valid component id")?)
+            }
+            "interval" => {
+                self.c.word();
+                HeartbeatSetting::Interval(self.duration("expected a duration, e.g. 1s or 500ms")?)
+            }
+            _ => return Err(unsupported(span, word, HEARTBEAT_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    /// A duration: digits then a unit, one word (`500ms`, `1s`); the unit is checked by
+    /// the semantics.
+    fn duration(&mut self, message: &str) -> Result<Span> {
+        let at = self.c.expected_at();
+        match self.c.peek_word() {
+            Some((span, w)) if w.starts_with(|c: char| c.is_ascii_digit()) => {
+                self.c.word();
+                Ok(span)
+            }
+            _ => Err(self
+                .value_error(at, message)
+                .with_note("write a number and a unit: ms, s or min")),
+        }
+    }
+
+    /// The name after `group`.
+    fn group_name(&mut self) -> Result<Span> {
+        let at = self.c.expected_at();
+        match self.c.peek_word() {
+            Some((span, w)) if starts_like_name(w) => {
+                self.c.word();
+                Ok(span)
+            }
+            _ => Err(self.value_error(at, "expected a group name")),
+        }
     }
 
     /// A statement of a `record` block.
@@ -864,6 +946,7 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
             ("serial", SERIAL_STATEMENTS),
             ("queue", QUEUE_STATEMENTS),
             ("record", RECORD_STATEMENTS),
+            ("heartbeat", HEARTBEAT_STATEMENTS),
         ]
         .into_iter()
         .filter(|(_, list)| list.contains(&word) && candidates != *list)

@@ -75,6 +75,7 @@ impl Printer<'_, '_> {
                         SerialSetting::MaxBitrate(v) => ("max_bitrate", *v),
                         SerialSetting::SigningKey(v) => ("signing_key", *v),
                         SerialSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
+                        SerialSetting::Group(v) => ("group", *v),
                     };
                     self.node(1, span, name, Some(span));
                 }
@@ -114,6 +115,18 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::Dedup { value, .. } => self.node(0, *value, "dedup", Some(*value)),
+            Item::Heartbeat { keyword, settings } => {
+                self.node(0, *keyword, "heartbeat", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        HeartbeatSetting::System(v) => ("system", *v),
+                        HeartbeatSetting::Component(v) => ("component", *v),
+                        HeartbeatSetting::Interval(v) => ("interval", *v),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {
@@ -144,6 +157,7 @@ impl Printer<'_, '_> {
                 // The key file's path, as written: the printer reads no file.
                 SocketSetting::SigningKey(v) => ("signing_key", *v),
                 SocketSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
+                SocketSetting::Group(v) => ("group", *v),
             };
             self.node(1, span, name, Some(span));
         }

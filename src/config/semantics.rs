@@ -66,6 +66,11 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
     let mut stats = None;
     // Line of the first `stats` block: a second one is an error.
     let mut stats_line: Option<usize> = None;
+    let mut dedup = None;
+    let mut dedup_line: Option<usize> = None;
+    let mut heartbeat = None;
+    let mut heartbeat_line: Option<usize> = None;
+    let mut groups: Vec<InterfaceGroup> = Vec::new();
     let mut chains: Vec<Chain> = cx
         .names
         .iter()
@@ -88,15 +93,41 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                     Item::Tcp { .. } => Kind::Tcp,
                     _ => Kind::Udp,
                 };
+                let named: Vec<Span> = (settings.iter())
+                    .filter_map(|s| match s {
+                        ast::SocketSetting::Group(v) => Some(*v),
+                        _ => None,
+                    })
+                    .collect();
+                let group = super::paths::group(ast, &named, &mut cx.errors);
                 if let Some(iface) = sockets::check(ast, kind, settings, &mut cx.errors) {
                     cx.no_shared_claim(*keyword, &iface, &mut claimed);
+                    if let Some(name) = group {
+                        groups.push(InterfaceGroup {
+                            interface: interfaces.len(),
+                            name,
+                        });
+                    }
                     interfaces.push(iface);
                 }
             }
             Item::Serial { keyword, settings } => {
+                let named: Vec<Span> = (settings.iter())
+                    .filter_map(|s| match s {
+                        SerialSetting::Group(v) => Some(*v),
+                        _ => None,
+                    })
+                    .collect();
+                let group = super::paths::group(ast, &named, &mut cx.errors);
                 if let Some(serial) = cx.serial(*keyword, settings) {
                     let serial = Interface::Serial(serial);
                     cx.no_shared_claim(*keyword, &serial, &mut claimed);
+                    if let Some(name) = group {
+                        groups.push(InterfaceGroup {
+                            interface: interfaces.len(),
+                            name,
+                        });
+                    }
                     interfaces.push(serial);
                 }
             }
@@ -160,6 +191,32 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                     record = checked;
                 }
             }
+            Item::Dedup { keyword, value } => {
+                let window = super::paths::dedup(ast, *value, &mut cx.errors);
+                match dedup_line {
+                    Some(first) => cx.error(
+                        Diagnostic::new(*keyword, "only one 'dedup' statement is allowed")
+                            .with_note(format!("the first 'dedup' statement is on line {first}")),
+                    ),
+                    None => {
+                        dedup_line = Some(cx.line(*keyword));
+                        dedup = window;
+                    }
+                }
+            }
+            Item::Heartbeat { keyword, settings } => {
+                let checked = super::paths::heartbeat(ast, settings, &mut cx.errors);
+                match heartbeat_line {
+                    Some(first) => cx.error(
+                        Diagnostic::new(*keyword, "only one 'heartbeat' block is allowed")
+                            .with_note(format!("the first 'heartbeat' block is on line {first}")),
+                    ),
+                    None => {
+                        heartbeat_line = Some(cx.line(*keyword));
+                        heartbeat = checked;
+                    }
+                }
+            }
             Item::Chain { name, rules } => {
                 let id = cx.ids[ast.text(*name)];
                 for rule in rules {
@@ -193,6 +250,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
             "rules name {UNKNOWN_NAME}, which matches nothing unless 'unknown_messages accept;' is set"
         ));
     }
+    warnings.extend(super::paths::lonely_groups(&groups));
     cx.find_cycles();
     if !cx.errors.is_empty() {
         return Err(cx.errors);
@@ -210,6 +268,9 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
             dialect: cx.dialect,
             dialect_files,
             unknown_messages,
+            dedup,
+            groups,
+            heartbeat,
         },
         warnings,
     })
@@ -387,6 +448,7 @@ impl<'a> Checker<'a, '_> {
                 },
                 SerialSetting::SigningKey(v) => key_file = Some(*v),
                 SerialSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
+                SerialSetting::Group(_) => {} // see `super::paths::group`
             }
         }
         match interface_signing(self.ast, key_file, &allow_unsigned) {

@@ -94,6 +94,7 @@ pub(crate) fn check(
             }
             SocketSetting::SigningKey(v) => key_file = Some(*v),
             SocketSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
+            SocketSetting::Group(_) => {} // see `super::paths::group`
         }
     }
     let signing = match interface_signing(ast, key_file, &allow_unsigned) {

@@ -36,6 +36,9 @@ pub struct LinkCounters {
     /// Valid frames from the link that no link took or rejected: no other link reaches
     /// their destination (a target nobody has heard of, or only the sender itself).
     pub no_route: u64,
+    /// Frames from the link dropped as copies of one taken in within the `dedup`
+    /// window (from any link).
+    pub duplicate: u64,
     /// Signatures checked, refused and added (links of interfaces with a key).
     pub signing: SigningCounters,
 }
@@ -92,6 +95,9 @@ impl fmt::Display for LinkReport<'_> {
         )?;
         if c.unknown_accepted > 0 {
             write!(f, ", {} unknown ids accepted", c.unknown_accepted)?;
+        }
+        if c.duplicate > 0 {
+            write!(f, ", {} duplicates dropped", c.duplicate)?;
         }
         if c.setup_signing > 0 {
             write!(f, ", {} SETUP_SIGNING not forwarded", c.setup_signing)?;

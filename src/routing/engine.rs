@@ -29,6 +29,7 @@
 mod configure;
 mod input;
 mod interfaces;
+mod paths;
 mod ready;
 mod report;
 mod streams;
@@ -47,8 +48,9 @@ use super::admission;
 use super::counters::InterfaceReport;
 use super::intake::{Intake, Sender, UnknownIds};
 use super::interface::{InterfaceId, Kind, LiveInterface as Interface, Reopen};
-use super::link::LinkId;
+use super::link::{GroupId, LinkId};
 use super::notice::Notice;
+use super::own_heartbeat::OwnHeartbeat;
 use super::pacer::Pace;
 use super::queue::Packet;
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF};
@@ -112,6 +114,8 @@ pub struct Engine {
     owner: ready::ByLink<InterfaceId>,
     /// Scratch for [`Engine::handle_timeout`].
     due: Vec<InterfaceId>,
+    /// The router's own heartbeat, when configured.
+    heartbeat: Option<OwnHeartbeat>,
 }
 
 /// The parts of the engine every received frame goes through, apart from the
@@ -131,13 +135,14 @@ struct Core {
 
 impl Core {
     /// The parser events of one input at `now` from `sender`, on an interface with
-    /// signing settings `edge`, described as `described` in messages: the one place an
-    /// [`Intake`] is built.
+    /// signing settings `edge` in `group`, described as `described` in messages: the
+    /// one place an [`Intake`] is built.
     fn intake<'a>(
         &'a mut self,
         now: Timestamp,
         sender: Sender<'a>,
         edge: Option<&'a mut Edge>,
+        group: Option<GroupId>,
         described: &'a str,
     ) -> Intake<'a> {
         Intake {
@@ -151,6 +156,7 @@ impl Core {
             signing: &mut self.signing,
             described,
             tap: self.tap.as_mut(),
+            group,
         }
     }
 }
@@ -191,6 +197,7 @@ impl Engine {
             deadlines: ready::Deadlines::default(),
             owner: ready::ByLink::default(),
             due: Vec::new(),
+            heartbeat: None,
         }
     }
 

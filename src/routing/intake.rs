@@ -6,7 +6,7 @@
 use std::collections::{HashSet, VecDeque};
 use std::net::SocketAddr;
 
-use super::link::LinkId;
+use super::link::{GroupId, LinkId};
 use super::notice::Notice;
 use super::remotes::Remotes;
 use super::router::{Output, Router};
@@ -85,6 +85,8 @@ pub(crate) struct Intake<'a> {
     pub described: &'a str,
     /// Where admitted frames are kept for recording, when the router records.
     pub tap: Option<&'a mut Tap>,
+    /// The interface's group, which a new link joins.
+    pub group: Option<GroupId>,
 }
 
 impl Intake<'_> {
@@ -99,6 +101,7 @@ impl Intake<'_> {
             } => *link.get_or_insert_with(|| {
                 let name = address.to_string();
                 let id = self.router.add_udp_link(&name, self.now);
+                self.router.set_group(id, self.group);
                 remotes.insert(*address, id);
                 self.notices.push_back(Notice::LinkAdded { id, name });
                 id
@@ -138,6 +141,17 @@ impl Intake<'_> {
 impl ParseEvents for Intake<'_> {
     #[inline]
     fn frame(&mut self, frame: Frame<'_>) {
+        // Copies are dropped before the signing check: the same signed frame over a
+        // second radio is a copy, not a replay. Only frames taken in are remembered, so
+        // a refused frame cannot hold back a genuine one.
+        let hash = self.router.dedup().hash(frame.as_bytes());
+        if let Some(h) = hash
+            && self.router.dedup_mut().is_duplicate(h, self.now)
+        {
+            let id = self.link();
+            self.router.take_duplicate(id, &frame, self.now, self.out);
+            return;
+        }
         let signed = match self.edge.as_deref_mut() {
             None => false,
             Some(edge) => match self.signing.admit(edge, &frame, self.now) {
@@ -154,6 +168,9 @@ impl ParseEvents for Intake<'_> {
         };
         if let Some(tap) = self.tap.as_deref_mut() {
             tap.offer(&frame, signed, self.now);
+        }
+        if let Some(h) = hash {
+            self.router.dedup_mut().note(h, self.now);
         }
         let id = self.link();
         if (signed || frame.is_unknown())

@@ -6,7 +6,7 @@
 use std::net::SocketAddr;
 
 use super::admission::Refused;
-use super::link::LinkId;
+use super::link::{GroupId, LinkId};
 use super::pacer::{DEFAULT_BURST, Pacer};
 use super::reconnect::{Connection, FIRST_BACKOFF, MAX_BACKOFF, MAX_RECONNECT_WAIT};
 use super::remotes::Remotes;
@@ -176,6 +176,8 @@ pub struct LiveInterface {
     pub kind: Kind,
     /// Its signing key, policy and counters, if it has a key.
     pub signing: Option<Edge>,
+    /// Its `group` (redundant paths to one vehicle), if it has one; its links take it.
+    pub group: Option<GroupId>,
 }
 
 impl LiveInterface {
@@ -193,6 +195,7 @@ impl LiveInterface {
             refused: Refused::default(),
             kind,
             signing: None,
+            group: None,
         }
     }
 

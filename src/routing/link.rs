@@ -13,6 +13,10 @@ use crate::time::Timestamp;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct LinkId(pub u64);
 
+/// A `group` of interfaces: redundant paths to one vehicle (numbered by the core).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct GroupId(pub u16);
+
 /// How long a link lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LinkKind {
@@ -42,6 +46,9 @@ pub struct Link {
     pub(crate) counters: LinkCounters,
     /// Creation time, or the last time an address was learned.
     last_learned: Timestamp,
+    /// The group of its interface: frames from one member never go to another, and
+    /// addresses learned on one are learned on each.
+    pub(crate) group: Option<GroupId>,
 }
 
 impl Link {
@@ -61,6 +68,7 @@ impl Link {
             queue: PacketQueue::new(queue_capacity),
             counters: LinkCounters::default(),
             last_learned: now,
+            group: None,
         }
     }
 
@@ -87,6 +95,11 @@ impl Link {
     /// [`LinkKind::Client`]; accepted connections likewise).
     pub(crate) fn reaches_the_unknown(&self) -> bool {
         matches!(self.kind, LinkKind::Client | LinkKind::Connection)
+    }
+
+    /// The group of its interface, if it has one.
+    pub fn group(&self) -> Option<GroupId> {
+        self.group
     }
 
     /// The addresses reachable through this link.

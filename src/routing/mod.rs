@@ -13,7 +13,11 @@
 //!   peers (`remotes`: peer ↔ link and the round robin), for a stream its
 //!   `reconnect` backoff;
 //! - `intake`: frames from a parser into the router (links created on a peer's first
-//!   valid frame, unknown ids reported once);
+//!   valid frame, unknown ids reported once, copies within the `dedup` window dropped
+//!   first: `dedup`);
+//! - `router::redundancy`: `group`s of links that are one path to a vehicle, and the
+//!   router's own address; `own_heartbeat`: the `heartbeat` block's frames, on the
+//!   core's own deadline;
 //! - `reload`: what a new configuration changes (interfaces matched by identity, rules
 //!   by text), which [`Engine::configure`] applies at start and at every reload;
 //! - `link`, `pool` (addresses with expiry), `counters`, `event` (log events and
@@ -23,6 +27,7 @@
 
 pub(crate) mod admission;
 pub(crate) mod counters;
+pub(crate) mod dedup;
 pub(crate) mod dispatch;
 pub(crate) mod engine;
 pub(crate) mod event;
@@ -30,6 +35,7 @@ pub(crate) mod intake;
 pub(crate) mod interface;
 pub(crate) mod link;
 pub(crate) mod notice;
+pub(crate) mod own_heartbeat;
 pub(crate) mod pacer;
 pub(crate) mod pool;
 pub(crate) mod queue;
@@ -48,7 +54,7 @@ pub use dispatch::Decision;
 pub use engine::{Engine, FORGET_AFTER, Reconfigured, Request, SEND_TURN, Transmit};
 pub use event::{Event, LinkRef, PacketSummary};
 pub use interface::InterfaceId;
-pub use link::{Link, LinkId, LinkKind};
+pub use link::{GroupId, Link, LinkId, LinkKind};
 pub use notice::Notice;
 pub use pacer::{Pace, Pacer};
 pub use pool::AddressPool;

@@ -20,6 +20,9 @@ use crate::filter::{CacheStats, Filter, FilterCounts, cache};
 use crate::time::Timestamp;
 use crate::wire::Frame;
 
+mod redundancy;
+use redundancy::Redundancy;
+
 /// Tunables of a [`Router`]; `Default` gives the original's behaviour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RouterOptions {
@@ -95,6 +98,8 @@ pub struct Router {
     /// however many other links there are. Links stay listed while their address
     /// expires (the decision checks liveness) and leave with the link.
     by_system: Vec<Vec<LinkId>>,
+    /// `dedup`, groups and the router's own address (see `redundancy`).
+    redundancy: Redundancy,
 }
 
 impl Router {
@@ -115,6 +120,7 @@ impl Router {
             sources: SourceTable::default(),
             sequences: Sequences::default(),
             limiter: RateLimiter::default(),
+            redundancy: Redundancy::default(),
             by_system: vec![Vec::new(); 256],
         }
     }
@@ -308,17 +314,9 @@ impl Router {
         let len = frame.as_bytes().len();
         self.sources.count(src, message_id);
         self.sequences.count(src, frame.seq());
-        let src_link = &mut self.links[si];
-        src_link.counters.received(len);
-        if src_link.learn(src, now) {
-            if level >= 1 {
-                out.events.push(Event::NewComponent {
-                    address: src,
-                    link: link_ref(src_link),
-                });
-            }
-            self.index_system(src.system, source);
-        }
+        self.links[si].counters.received(len);
+        self.learn_source(si, src, now, out);
+        let own = self.is_own(src);
         let src_ref = (level >= 2).then(|| link_ref(&self.links[si]));
         if let Some(s) = &src_ref {
             out.events.push(Event::Received {
@@ -344,6 +342,9 @@ impl Router {
                     None => continue,
                 },
             };
+            if self.keeps_back(si, i, own) {
+                continue;
+            }
             let link = &self.links[i];
             let decision = decide(
                 &mut self.filter,

@@ -141,6 +141,7 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
                     replayed: c.signing.replayed,
                     out_of_window: c.signing.out_of_window,
                     unsigned: c.signing.unsigned,
+                    duplicate: c.duplicate,
                 },
                 queue_bytes: l.queue().bytes() as u64,
                 queue_high_water: l.queue().high_water() as u64,

@@ -67,11 +67,14 @@ pub struct Drops {
     /// `SETUP_SIGNING` frames from this link forwarded nowhere (only a rule naming it
     /// forwards it: it carries a signing key in the clear).
     pub setup_signing: u64,
+    /// Frames from this link dropped as copies of one taken in within the `dedup`
+    /// window (redundant paths deliver each frame once per path).
+    pub duplicate: u64,
 }
 
 impl Drops {
     /// The reasons with their names, in the JSON's order.
-    pub(crate) fn named(&self) -> [(&'static str, u64); 11] {
+    pub(crate) fn named(&self) -> [(&'static str, u64); 12] {
         [
             ("filter_rejected", self.filter_rejected),
             ("no_route", self.no_route),
@@ -84,6 +87,7 @@ impl Drops {
             ("out_of_window", self.out_of_window),
             ("unsigned", self.unsigned),
             ("setup_signing", self.setup_signing),
+            ("duplicate", self.duplicate),
         ]
     }
 }

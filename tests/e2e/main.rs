@@ -22,6 +22,7 @@ mod log_backpressure;
 mod peers_mavproxy;
 mod rate_caps_e2e;
 mod recording_e2e;
+mod redundant_links;
 mod reload_e2e;
 mod router_e2e;
 mod signing_peers;

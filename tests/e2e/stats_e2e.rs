@@ -206,7 +206,7 @@ chain tail {{
     // The ground station: its first heartbeat went nowhere; 4 SYSTEM_TIME, 3 VFR_HUD
     // (default action) and 2 SYS_STATUS for it were rejected.
     assert_eq!(drops(g), expect(&[("no_route", 1), ("filter_rejected", 9)]));
-    assert_eq!(v["drops"].as_object().map(|d| d.len()), Some(11));
+    assert_eq!(v["drops"].as_object().map(|d| d.len()), Some(12));
 
     // Rules: packets (condition matched), bytes, decided.
     let rules: Vec<(String, String, u64, u64, u64)> = s["chains"]

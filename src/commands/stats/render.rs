@@ -19,6 +19,7 @@ const DROP_REASONS: &[(&str, &str)] = &[
     ("replayed", "replayed"),
     ("out_of_window", "out of window"),
     ("unsigned", "unsigned"),
+    ("duplicate", "duplicate"),
 ];
 
 /// The whole text for the statistics `stats` fetched from `source` (a URL).

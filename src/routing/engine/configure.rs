@@ -21,6 +21,13 @@ pub(super) struct Configured {
     key: Option<SigningKey>,
 }
 
+impl Configured {
+    /// The core's interface of the block.
+    pub(super) fn id(&self) -> InterfaceId {
+        self.id
+    }
+}
+
 /// What the event loop must do after [`Engine::configure`], in the order given (every
 /// close comes before every open: a port or device may move from an old block to a new
 /// one, and an interface number may be used again).
@@ -224,6 +231,7 @@ impl Engine {
                 })
             })
             .collect();
+        self.apply_paths(config, now);
         self.config = config.clone();
         // A reload is rare: every deadline is filed afresh, and every interface gets a
         // turn to send (a changed pacer may let a held-back packet go).
@@ -388,7 +396,7 @@ impl Engine {
     }
 
     /// Interface `id` and, for a server, the connections it accepted.
-    fn family(&self, id: InterfaceId) -> Vec<InterfaceId> {
+    pub(super) fn family(&self, id: InterfaceId) -> Vec<InterfaceId> {
         let mut family = vec![id];
         family.extend(self.interfaces.iter().filter_map(|(key, i)| match i.kind {
             Kind::Stream {

@@ -20,6 +20,7 @@ impl Engine {
             refused,
             described,
             signing: edge,
+            group,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
@@ -72,7 +73,9 @@ impl Engine {
             sender,
             Sender::Stream(_) | Sender::Remote { link: Some(_), .. }
         );
-        let mut intake = self.core.intake(now, sender, edge.as_mut(), described);
+        let mut intake = self
+            .core
+            .intake(now, sender, edge.as_mut(), *group, described);
         parser.feed_events(bytes, &mut intake);
         let new_link = (!had_link).then(|| intake.existing_link()).flatten();
         tail.received(now);
@@ -92,6 +95,7 @@ impl Engine {
             kind,
             signing: edge,
             described,
+            group,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
@@ -106,9 +110,9 @@ impl Engine {
         if !connection.is_open() {
             return;
         }
-        let mut intake = self
-            .core
-            .intake(now, Sender::Stream(link), edge.as_mut(), described);
+        let mut intake =
+            self.core
+                .intake(now, Sender::Stream(link), edge.as_mut(), *group, described);
         parser.feed_events(bytes, &mut intake);
         tail.received(now);
         if parser.pending_len() > 0 || self.deadlines.has(id) {

@@ -158,8 +158,10 @@ impl Engine {
         *connections += 1;
         let max_bitrate = *max_bitrate;
         let edge = server.signing.as_ref().map(Edge::fresh_copy);
+        let group = server.group;
         let name = format!("tcp:{peer}");
         let link = self.core.router.add_connection_link(&name, now);
+        self.core.router.set_group(link, group);
         self.core.notices.push_back(Notice::LinkAdded {
             id: link,
             name: name.clone(),
@@ -170,6 +172,7 @@ impl Engine {
             Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),
         );
         connection.signing = edge;
+        connection.group = group;
         Some(self.push_interface(connection))
     }
 

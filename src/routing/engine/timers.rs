@@ -11,12 +11,15 @@ const _: () = assert!(TICK.as_secs() == SAVE_INTERVAL_SECS && TICK.subsec_nanos(
 
 impl Engine {
     /// The next instant something is due: the expiry tick, held-back bytes turning
-    /// stale, a packet the pacer holds back, or opening an interface again. Its cost
+    /// stale, a packet the pacer holds back, opening an interface again, or the router's
+    /// own heartbeat. Its cost
     /// does not grow with the number of interfaces (the deadlines are kept in order).
     pub fn poll_timeout(&self) -> Timestamp {
-        self.deadlines
+        let due = self
+            .deadlines
             .first()
-            .map_or(self.next_tick, |t| t.min(self.next_tick))
+            .map_or(self.next_tick, |t| t.min(self.next_tick));
+        self.heartbeat.as_ref().map_or(due, |h| due.min(h.due()))
     }
 
     /// Runs what is due at `now` (see [`Engine::poll_timeout`]). Calling it early, or
@@ -31,6 +34,7 @@ impl Engine {
         }
         due.clear();
         self.due = due;
+        self.send_heartbeat(now);
         if now >= self.next_tick {
             for id in self.core.router.tick(now) {
                 self.forget(id);
@@ -72,6 +76,7 @@ impl Engine {
             kind,
             signing: edge,
             described,
+            group,
             ..
         } = interface;
         let stale = open
@@ -101,7 +106,9 @@ impl Engine {
         };
         // The candidate is rejected and the bytes behind its start scanned again, so
         // valid frames held up behind noise are routed now.
-        let mut intake = self.core.intake(now, sender, edge.as_mut(), described);
+        let mut intake = self
+            .core
+            .intake(now, sender, edge.as_mut(), *group, described);
         parser.finish(&mut intake);
         let link = intake.existing_link();
         self.adopt_link(link, id);
