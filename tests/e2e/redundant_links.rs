@@ -1,13 +1,17 @@
-//! Two radios to one vehicle through the real binary over UDP: `dedup` and a `group`
-//! of two `udp` interfaces make them one path (the ground station gets each frame once,
-//! in order; one radio dying loses nothing; a genuine resend after the window passes;
-//! a command goes out on both radios). And the router's own `heartbeat`, waited for by
-//! a pymavlink peer behind `udp { connect ...; }`.
+//! Two radios to one vehicle through the real binary: `dedup` and a `group` of two `udp`
+//! interfaces (or of a serial port, a real pseudo-terminal, and a `udp` interface) make
+//! them one path (the ground station gets each frame once, in order; one radio dying
+//! loses nothing; a genuine resend after the window passes; a command goes out on both
+//! radios). And the router's own `heartbeat`, waited for by a pymavlink peer behind
+//! `udp { connect ...; }`.
 
 use crate::common;
 
+use std::io::{Read, Write};
 use std::net::UdpSocket;
 use std::time::Duration;
+
+use serialport::{SerialPort, TTYPort};
 
 use common::net::{number_of, numbered, with_payload};
 use common::router::{Router, Scratch, free_udp_port};
@@ -123,6 +127,74 @@ fn two_radios_in_a_group_are_one_path_to_the_vehicle() {
     let stopped = router.stop();
     let counters = stopped.stderr.join("\n");
     assert!(counters.contains("duplicates dropped"), "{counters}");
+}
+
+/// A vehicle with a serial radio (a pseudo-terminal) and an IP link (UDP), both in one
+/// group: the ground station gets every frame once and in order, also while only one of
+/// them carries the traffic, and a command for the vehicle goes out on both.
+#[test]
+fn a_serial_radio_and_a_udp_link_in_a_group_are_one_path() {
+    let scratch = Scratch::new("dedup-serial");
+    let device = scratch.path("radio");
+    let (mut master, slave) = TTYPort::pair().expect("pty pair");
+    std::os::unix::fs::symlink(slave.name().expect("pty name"), &device).expect("symlink");
+    let (pa, pg) = (free_udp_port(), free_udp_port());
+    let conf = format!(
+        "dedup 300ms;\n\
+         serial {{ device {device}; baudrate 115200; group vehicle; }}\n\
+         udp {{ port {pa}; address 127.0.0.1; group vehicle; }}\n\
+         udp {{ port {pg}; address 127.0.0.1; }}\n\
+         default_action accept;\n"
+    );
+    let mut router = Router::start(&scratch, &conf, 1);
+    let (a, gcs) = (format!("127.0.0.1:{pa}"), format!("127.0.0.1:{pg}"));
+    let (va, g) = (socket(), socket());
+    g.send_to(&with_payload(0, 255, 0, &[0, 0, 0, 0, 6, 8, 0, 0, 3]), &gcs)
+        .expect("send");
+    router.wait_for("new component 255.1");
+    master
+        .write_all(&with_payload(0, 1, 0, &[0, 0, 0, 0, 2, 3, 0, 0, 3]))
+        .expect("serial heartbeat");
+    router.wait_for(&format!("new component 1.1 on {device}"));
+
+    for n in 0..=200u32 {
+        master.write_all(&numbered(1, n)).expect("serial");
+        va.send_to(&numbered(1, n), &a).expect("udp");
+    }
+    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 200);
+    assert_eq!(numbers(&got), (0..=200).collect::<Vec<_>>());
+    // The serial radio alone, then the IP link alone.
+    for n in 201..=300u32 {
+        master.write_all(&numbered(1, n)).expect("serial");
+    }
+    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 300);
+    assert_eq!(numbers(&got), (201..=300).collect::<Vec<_>>());
+    for n in 301..=400u32 {
+        va.send_to(&numbered(1, n), &a).expect("udp");
+    }
+    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 400);
+    assert_eq!(numbers(&got), (301..=400).collect::<Vec<_>>());
+
+    // A command for the vehicle goes out on the serial radio and on the IP link.
+    let cmd = command(7);
+    g.send_to(&cmd, &gcs).expect("send command");
+    receive_until(&va, |f| f == cmd.as_slice());
+    master
+        .set_timeout(Duration::from_millis(100))
+        .expect("timeout");
+    let mut serial_in = Vec::new();
+    let mut buf = [0u8; 1024];
+    common::eventually(
+        "the command on the serial radio",
+        Duration::from_secs(10),
+        || {
+            if let Ok(n) = master.read(&mut buf) {
+                serial_in.extend_from_slice(&buf[..n]);
+            }
+            serial_in.windows(cmd.len()).any(|w| w == cmd.as_slice())
+        },
+    );
+    router.stop();
 }
 
 #[test]
