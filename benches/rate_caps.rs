@@ -18,9 +18,8 @@ mod common;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use mavtables::routing::{LinkId, Output, Router, RouterOptions, Timestamp};
+use mavtables::routing::{Output, Timestamp};
 use mavtables::wire::Frame;
-use mavtables::wire::encode::{Header, encode_v2};
 
 const ROUNDS: usize = 41;
 const BATCH: usize = 2000;
@@ -52,61 +51,20 @@ fn config(ids: &[u32], rate: &str) -> String {
 }
 
 struct Setup {
-    router: Router,
-    source: LinkId,
-    links: Vec<LinkId>,
+    learned: common::LearnedRouter,
     now: Timestamp,
 }
 
 fn setup(conf: &str) -> Setup {
-    let config = mavtables::config::load(conf).expect("bench config").config;
-    let options = RouterOptions {
-        event_level: 0,
-        cache_slots: MEMO_SLOTS,
-        ..RouterOptions::default()
-    };
-    let mut router = Router::with_options(&config, options);
-    let mut out = Output::default();
-    let now = Timestamp::ZERO;
-    let mut links = Vec::new();
-    for l in 0..LINKS {
-        let id = router.add_udp_link(&format!("10.0.0.{l}:14550"), now);
-        for a in 0..ADDRESSES {
-            let f = encode(0, (l * ADDRESSES + a + 1) as u8);
-            let frame = Frame::parse_exact(&f).expect("frame");
-            router.receive(id, &frame, now, &mut out);
-        }
-        links.push(id);
-    }
-    let source = router.add_udp_link("10.0.1.1:14550", now);
-    let mut s = Setup {
-        router,
-        source,
-        links,
+    Setup {
+        learned: common::LearnedRouter::new(conf, MEMO_SLOTS, LINKS, ADDRESSES),
         now: Timestamp::from_secs(1),
-    };
-    drain(&mut s);
-    s
+    }
 }
 
 /// A v2 frame of message `id` (full length) from `system.1`.
 fn encode(id: u32, system: u8) -> Vec<u8> {
-    let info = mavtables::dialect::by_id(id).expect("message");
-    let payload = vec![0x55u8; info.max_len as usize];
-    let mut out = Vec::new();
-    let header = Header {
-        seq: 0,
-        system,
-        component: 1,
-    };
-    encode_v2(header, id, &payload, None, &mut out).expect("encode");
-    out
-}
-
-fn drain(s: &mut Setup) {
-    for &l in &s.links {
-        while s.router.pop(l).is_some() {}
-    }
+    common::encode(id, system, 1)
 }
 
 /// Routes BATCH packets (cycling through `frames`, 1 ms apart); returns the time and
@@ -117,12 +75,13 @@ fn run(s: &mut Setup, frames: &[Frame<'_>], out: &mut Output) -> (Duration, usiz
     for i in 0..BATCH {
         s.now = s.now + Duration::from_millis(1);
         let frame = &frames[i % frames.len()];
-        s.router.receive(s.source, black_box(frame), s.now, out);
+        let l = &mut s.learned;
+        l.router.receive(l.source, black_box(frame), s.now, out);
         queued += out.queued.len();
         out.clear();
     }
     let t = start.elapsed();
-    drain(s);
+    s.learned.drain();
     (t, queued)
 }
 
@@ -166,11 +125,11 @@ fn main() {
         println!("  {name}  {ns:>8.0} ns/decision");
     }
     println!("  ratio with rates / without: {:.2}x", per[1] / per[0]);
-    let counts = variants[1].1.router.filter_counts();
+    let counts = variants[1].1.learned.router.filter_counts();
     let limited: u64 = counts.rules.iter().map(|r| r.rate_limited).sum();
     assert_eq!(limited, 0, "every packet passes its cap");
     for (name, s) in &variants {
-        let c = s.router.filter_stats();
+        let c = s.learned.router.filter_stats();
         println!(
             "  memo ({}): {} hits, {} misses",
             name.trim(),

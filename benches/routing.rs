@@ -10,9 +10,9 @@ mod common;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use mavtables::routing::{LinkId, Output, Router, RouterOptions, Timestamp};
+use common::encode;
+use mavtables::routing::{Output, Timestamp};
 use mavtables::wire::Frame;
-use mavtables::wire::encode::{Header, encode_v2};
 
 const ROUNDS: usize = 41;
 const BATCH: usize = 2000;
@@ -63,60 +63,14 @@ fn three_hundred_rules() -> String {
     s
 }
 
-struct Setup {
-    router: Router,
-    source: LinkId,
-    links: Vec<LinkId>,
-}
+type Setup = common::LearnedRouter;
 
 fn setup(conf: &str, cache_slots: usize) -> Setup {
-    let config = mavtables::config::load(conf).expect("bench config").config;
-    let options = RouterOptions {
-        event_level: 0,
-        cache_slots,
-        ..RouterOptions::default()
-    };
-    let mut router = Router::with_options(&config, options);
-    let mut out = Output::default();
-    let now = Timestamp::ZERO;
-    let mut links = Vec::new();
-    for l in 0..LINKS {
-        let id = router.add_udp_link(&format!("10.0.0.{l}:14550"), now);
-        for a in 0..ADDRESSES {
-            let f = encode(0, (l * ADDRESSES + a + 1) as u8, 1);
-            let frame = Frame::parse_exact(&f).expect("frame");
-            router.receive(id, &frame, now, &mut out);
-        }
-        links.push(id);
-    }
-    let source = router.add_udp_link("10.0.1.1:14550", now);
-    let mut s = Setup {
-        router,
-        source,
-        links,
-    };
-    drain(&mut s);
-    s
-}
-
-/// A v2 frame of message `id` (full length) from `system.component`.
-fn encode(id: u32, system: u8, component: u8) -> Vec<u8> {
-    let info = mavtables::dialect::by_id(id).expect("message");
-    let payload = vec![0x55u8; info.max_len as usize];
-    let mut out = Vec::new();
-    let header = Header {
-        seq: 0,
-        system,
-        component,
-    };
-    encode_v2(header, id, &payload, None, &mut out).expect("encode");
-    out
+    Setup::new(conf, cache_slots, LINKS, ADDRESSES)
 }
 
 fn drain(s: &mut Setup) {
-    for &l in &s.links {
-        while s.router.pop(l).is_some() {}
-    }
+    s.drain();
 }
 
 /// Routes the packet BATCH times; returns the time and how many links queued it.
