@@ -428,6 +428,47 @@ fn interfaces_open_close_and_change_in_place() {
     assert_eq!(learned, 1, "the receiver was learned again");
 }
 
+/// A serial port whose `baudrate` changes is reopened (its device opened again, said in
+/// the log) and routes as before, while the UDP interface beside it keeps its socket;
+/// a serial port left as it was is not touched.
+#[test]
+fn a_changed_serial_port_is_reopened_and_routes_again() {
+    use serialport::{SerialPort, TTYPort};
+    let s = Scratch::new("reload-serial");
+    let device = s.path("radio");
+    let (mut master, slave) = TTYPort::pair().expect("pty pair");
+    std::os::unix::fs::symlink(slave.name().expect("pty name"), &device).expect("symlink");
+    let port = free_udp_port();
+    let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
+    let serial = |baud: u32| format!("serial {{ device {device}; baudrate {baud}; }}\n");
+    let mut router = Router::start(&s, &format!("{udp}{}", serial(57600)), 1);
+    let gcs = udp_peer(&mut router, port, 255);
+    let socket_before = udp_inode(port);
+    master.write_all(&heartbeat(1)).expect("serial");
+    router.wait_for(&format!("new component 1.1 on {device}"));
+    master.write_all(&attitude(1, 1)).expect("serial");
+    expect_frame(&gcs, &attitude(1, 1));
+
+    let line = reload(&mut router, &format!("{udp}{}", serial(57600)));
+    assert!(line.contains("0 changed"), "unchanged: {line}");
+    std::fs::write(&router.config, format!("{udp}{}", serial(115200))).expect("write");
+    router.signal(libc::SIGHUP);
+    router
+        .err
+        .wait_for(&format!("serial device {device} reopened"), 10 * SECOND);
+    let line = router.err.wait_for(RELOADED, 10 * SECOND);
+    assert!(line.contains("1 changed"), "{line}");
+    // The device is opened again: what the vehicle says now reaches the ground station.
+    eventually("the reopened port routes", 10 * SECOND, || {
+        let _ = master.write_all(&attitude(1, 2));
+        gcs.set_read_timeout(Some(Duration::from_millis(200)))
+            .expect("timeout");
+        udp_frames(&gcs, 1, Duration::from_millis(300)).contains(&attitude(1, 2))
+    });
+    assert_eq!(udp_inode(port), socket_before, "the UDP socket was kept");
+    router.stop();
+}
+
 /// The inode of the UDP socket bound to `port` (from /proc/net/udp): the same number
 /// before and after means the same socket.
 fn udp_inode(port: u16) -> String {
