@@ -179,3 +179,21 @@ pub fn manifest(section: &str, column: Verdict) -> Vec<(String, bool)> {
     }
     rows
 }
+
+/// A pseudo-terminal pair whose slave is reached through the symlink `device`, a serial
+/// port for the router. Neither end is inherited by any child (a router or peer of
+/// another test in this process holding the master open would keep the device from
+/// ever going away).
+pub fn pty_at(device: &str) -> (serialport::TTYPort, serialport::TTYPort) {
+    use serialport::SerialPort;
+    use std::os::fd::AsRawFd;
+    let (master, slave) = serialport::TTYPort::pair().expect("pty pair");
+    for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
+        // SAFETY: fcntl on a file descriptor we own; no pointers involved.
+        let rc = unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+        assert_eq!(rc, 0, "FD_CLOEXEC");
+    }
+    let _ = std::fs::remove_file(device);
+    std::os::unix::fs::symlink(slave.name().expect("pty name"), device).expect("symlink");
+    (master, slave)
+}

@@ -11,7 +11,7 @@ use std::io::{Read, Write};
 use std::net::UdpSocket;
 use std::time::Duration;
 
-use serialport::{SerialPort, TTYPort};
+use serialport::SerialPort;
 
 use common::net::{number_of, numbered, with_payload};
 use common::router::{Router, Scratch, free_udp_port};
@@ -136,8 +136,7 @@ fn two_radios_in_a_group_are_one_path_to_the_vehicle() {
 fn a_serial_radio_and_a_udp_link_in_a_group_are_one_path() {
     let scratch = Scratch::new("dedup-serial");
     let device = scratch.path("radio");
-    let (mut master, slave) = TTYPort::pair().expect("pty pair");
-    std::os::unix::fs::symlink(slave.name().expect("pty name"), &device).expect("symlink");
+    let (mut master, _slave) = common::pty_at(&device);
     let (pa, pg) = (free_udp_port(), free_udp_port());
     let conf = format!(
         "dedup 300ms;\n\

@@ -433,11 +433,9 @@ fn interfaces_open_close_and_change_in_place() {
 /// a serial port left as it was is not touched.
 #[test]
 fn a_changed_serial_port_is_reopened_and_routes_again() {
-    use serialport::{SerialPort, TTYPort};
     let s = Scratch::new("reload-serial");
     let device = s.path("radio");
-    let (mut master, slave) = TTYPort::pair().expect("pty pair");
-    std::os::unix::fs::symlink(slave.name().expect("pty name"), &device).expect("symlink");
+    let (mut master, _slave) = common::pty_at(&device);
     let port = free_udp_port();
     let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
     let serial = |baud: u32| format!("serial {{ device {device}; baudrate {baud}; }}\n");

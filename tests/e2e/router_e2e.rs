@@ -11,7 +11,6 @@ use crate::common;
 
 use std::io::{Read, Write};
 use std::net::UdpSocket;
-use std::os::fd::AsRawFd;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
@@ -23,7 +22,7 @@ use common::router::{
 use mavtables::dialect;
 use mavtables::wire::Parser;
 use mavtables::wire::encode::{Header, encode_v1, encode_v2};
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 
 const SECOND: Duration = Duration::from_secs(1);
 
@@ -201,21 +200,6 @@ fn read_frames(
         }
     }
     frames
-}
-
-/// A pty pair whose slave is reached through the symlink `device`.
-fn pty_at(device: &str) -> (TTYPort, TTYPort) {
-    let (master, slave) = TTYPort::pair().expect("pty pair");
-    // Not inherited by the router (or any other child): a router holding the master
-    // open would never see the device go away.
-    for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
-        // SAFETY: fcntl on a file descriptor we own; no pointers involved.
-        let rc = unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
-        assert_eq!(rc, 0, "FD_CLOEXEC");
-    }
-    let _ = std::fs::remove_file(device);
-    std::os::unix::fs::symlink(slave.name().expect("pty name"), device).expect("symlink");
-    (master, slave)
 }
 
 // ----------------------------------------------------------------------------------------
@@ -753,7 +737,7 @@ fn udp_and_serial(s: &Scratch) -> UdpAndSerial {
     let port = free_udp_port();
     let dev = s.path("ttyS0");
     let config = udp_block(port, "") + &serial_block(&dev, "") + REJECT_HEARTBEAT_ACCEPT;
-    let (master, slave) = pty_at(&dev);
+    let (master, slave) = common::pty_at(&dev);
     let mut router = Router::start(s, &config, 1);
     let rx = UdpPeer::new(port);
     rx.send(&heartbeat(12, 26));
@@ -818,7 +802,7 @@ fn serial_device_vanishes_and_comes_back() {
     );
 
     // It comes back under the same path (a new pty).
-    let (mut master, _slave) = pty_at(&dev);
+    let (mut master, _slave) = common::pty_at(&dev);
     router
         .err
         .wait_for(&format!("serial device {dev} is back"), 5 * SECOND);
