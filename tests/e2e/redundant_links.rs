@@ -46,6 +46,14 @@ fn numbers(frames: &[Vec<u8>]) -> Vec<u32> {
         .collect()
 }
 
+/// Asserts that `g` receives the numbered frames of `range` from system 1, each once
+/// and in order (other frames aside), within 10 s.
+fn arrive_once_in_order(g: &UdpSocket, range: std::ops::RangeInclusive<u32>) {
+    let last = *range.end();
+    let got = receive_until(g, |f| f.len() == 40 && number_of(f) == last);
+    assert_eq!(numbers(&got), range.collect::<Vec<_>>());
+}
+
 /// COMMAND_LONG from 255.1 for 1.1.
 fn command(seq: u8) -> Vec<u8> {
     let mut payload = [0x11u8; 33];
@@ -81,20 +89,17 @@ fn two_radios_in_a_group_are_one_path_to_the_vehicle() {
         va.send_to(&numbered(1, n), &a).expect("send a");
         vb.send_to(&numbered(1, n), &b).expect("send b");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 200);
-    assert_eq!(numbers(&got), (0..=200).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 0..=200);
 
     // Radio A dies: B alone loses nothing; then B dies and A alone carries on.
     for n in 201..=300u32 {
         vb.send_to(&numbered(1, n), &b).expect("send b");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 300);
-    assert_eq!(numbers(&got), (201..=300).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 201..=300);
     for n in 301..=400u32 {
         va.send_to(&numbered(1, n), &a).expect("send a");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 400);
-    assert_eq!(numbers(&got), (301..=400).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 301..=400);
 
     // A genuine resend (the same bytes after the window) passes; a copy within it not.
     let resend = numbered(1, 500);
@@ -160,19 +165,16 @@ fn a_serial_radio_and_a_udp_link_in_a_group_are_one_path() {
         master.write_all(&numbered(1, n)).expect("serial");
         va.send_to(&numbered(1, n), &a).expect("udp");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 200);
-    assert_eq!(numbers(&got), (0..=200).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 0..=200);
     // The serial radio alone, then the IP link alone.
     for n in 201..=300u32 {
         master.write_all(&numbered(1, n)).expect("serial");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 300);
-    assert_eq!(numbers(&got), (201..=300).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 201..=300);
     for n in 301..=400u32 {
         va.send_to(&numbered(1, n), &a).expect("udp");
     }
-    let got = receive_until(&g, |f| f.len() == 40 && number_of(f) == 400);
-    assert_eq!(numbers(&got), (301..=400).collect::<Vec<_>>());
+    arrive_once_in_order(&g, 301..=400);
 
     // A command for the vehicle goes out on the serial radio and on the IP link.
     let cmd = command(7);
