@@ -374,6 +374,8 @@ pub fn strip_ports(line: &str) -> String {
 pub struct Peer {
     guard: Guard,
     stdin: Option<ChildStdin>,
+    /// The symlink a `--serial` peer points at its pty (removed before the peer ends).
+    serial_link: Option<PathBuf>,
     /// Its standard output.
     pub out: Lines,
 }
@@ -400,9 +402,16 @@ impl Peer {
         );
         let out = Lines::new(child.stdout.take().expect("stdout"), &what);
         let stdin = child.stdin.take();
+        let serial_link = args
+            .iter()
+            .map(AsRef::as_ref)
+            .skip_while(|a| *a != "--serial")
+            .nth(1)
+            .map(PathBuf::from);
         let mut peer = Peer {
             guard: Guard(Some(child)),
             stdin,
+            serial_link,
             out,
         };
         peer.out.wait_for("setup", Duration::from_secs(20));
@@ -462,6 +471,11 @@ impl Peer {
 
 impl Drop for Peer {
     fn drop(&mut self) {
+        // The path goes before the pty: a router still retrying it must not open the
+        // next pty the kernel gives the same number (another test's).
+        if let Some(link) = &self.serial_link {
+            let _ = std::fs::remove_file(link);
+        }
         // Closing stdin lets a sender exit (a serial sender keeps its pty open till then).
         self.stdin = None;
         let _ = self.guard.wait(Duration::from_millis(500));

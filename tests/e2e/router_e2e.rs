@@ -788,9 +788,11 @@ fn serial_device_vanishes_and_comes_back() {
     );
 
     // The device goes: its other end closes and the path disappears.
+    // The path first: once the pty is closed its number is free for another test's pty,
+    // which the router, retrying this path, must never open.
+    std::fs::remove_file(&dev).expect("remove link");
     drop(master);
     drop(slave);
-    std::fs::remove_file(&dev).expect("remove link");
     router
         .err
         .wait_for(&format!("serial device {dev} lost"), 5 * SECOND);

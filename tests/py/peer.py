@@ -21,8 +21,10 @@ Protocol on stdout/stdin, one line each: after setting the link up the peer prin
           --timeout seconds. Prints "end" last.
 """
 import argparse
+import atexit
 import os
 import select
+import signal
 import socket
 import sys
 import time
@@ -67,6 +69,19 @@ class Pty:
         if os.path.lexists(link):
             os.unlink(link)
         os.symlink(os.ttyname(self.slave), link)
+        # The link goes before the pty does: once this process exits the kernel may hand
+        # the same /dev/pts number to another test's pty, and a router still retrying this
+        # path would open that one instead.
+        atexit.register(Pty.unlink, link, os.ttyname(self.slave))
+        signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+
+    @staticmethod
+    def unlink(link, target):
+        try:
+            if os.readlink(link) == target:
+                os.unlink(link)
+        except OSError:
+            pass
 
     def write(self, data):
         view = memoryview(data)
