@@ -1,6 +1,6 @@
 //! A link's outgoing packets: bounded, highest priority first, FIFO among equals.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 
 pub use crate::wire::Packet;
 
@@ -22,6 +22,9 @@ pub(crate) const DEFAULT_TOTAL_CAPACITY: usize = 16 * 1024 * 1024;
 /// Bytes charged per packet on top of its length (shared-buffer header and queue slot),
 /// so that a flood of tiny packets is bounded too.
 pub(crate) const PACKET_OVERHEAD: usize = 32;
+
+/// Empty buckets a queue keeps for reuse before it lets the extra ones go.
+const MAX_EMPTY_BUCKETS: usize = 8;
 
 /// What [`PacketQueue::push`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,9 +54,15 @@ struct Bucket {
 /// if it still could not fit after dropping everything of its own priority or lower, the
 /// new packet itself is dropped instead (a new packet never displaces a higher-priority
 /// one). Every drop is counted.
+///
+/// A bucket stays (empty, its ring kept) after its last packet leaves, so a link that
+/// sends every packet as it arrives allocates nothing per packet; priorities come from
+/// the configuration, so there are few of them, and empty buckets beyond
+/// [`MAX_EMPTY_BUCKETS`] are let go (a reload may bring new ones).
 #[derive(Debug, Clone)]
 pub struct PacketQueue {
-    buckets: BTreeMap<i32, Bucket>,
+    /// One bucket per priority seen, in ascending priority.
+    buckets: Vec<(i32, Bucket)>,
     bytes: usize,
     len: usize,
     capacity: usize,
@@ -66,7 +75,7 @@ impl PacketQueue {
     /// An empty queue holding at most `capacity` bytes (see `PACKET_OVERHEAD`).
     pub fn new(capacity: usize) -> Self {
         PacketQueue {
-            buckets: BTreeMap::new(),
+            buckets: Vec::new(),
             bytes: 0,
             len: 0,
             capacity,
@@ -80,10 +89,12 @@ impl PacketQueue {
         let cost = Self::cost_of(&packet);
         let mut evicted = 0;
         if self.bytes.saturating_add(cost) > self.capacity {
-            let ahead: usize = match priority.checked_add(1) {
-                Some(above) => self.buckets.range(above..).map(|(_, b)| b.bytes).sum(),
-                None => 0,
-            };
+            let ahead: usize = self
+                .buckets
+                .iter()
+                .filter(|(p, _)| *p > priority)
+                .map(|(_, b)| b.bytes)
+                .sum();
             if ahead.saturating_add(cost) > self.capacity {
                 self.dropped += 1;
                 return PushOutcome::Dropped;
@@ -98,16 +109,57 @@ impl PacketQueue {
         }
         self.bytes += cost;
         self.len += 1;
-        let bucket = self.buckets.entry(priority).or_default();
+        let bucket = self.bucket(priority);
         bucket.bytes += cost;
         bucket.packets.push_back(packet);
         self.high_water = self.high_water.max(self.bytes);
         PushOutcome::Queued { evicted }
     }
 
+    /// The bucket of `priority`, made (or an empty one's place taken) if there is none.
+    fn bucket(&mut self, priority: i32) -> &mut Bucket {
+        // Usually one or two buckets: a linear search from the top is the quickest.
+        let at = match self.buckets.iter().rposition(|(p, _)| *p == priority) {
+            Some(i) => i,
+            None => {
+                self.forget_empty_buckets();
+                let i = self.buckets.partition_point(|(p, _)| *p < priority);
+                self.buckets.insert(i, (priority, Bucket::default()));
+                i
+            }
+        };
+        &mut self.buckets[at].1
+    }
+
+    /// Lets empty buckets go once more than [`MAX_EMPTY_BUCKETS`] are kept.
+    fn forget_empty_buckets(&mut self) {
+        let empty = self
+            .buckets
+            .iter()
+            .filter(|(_, b)| b.packets.is_empty())
+            .count();
+        if empty >= MAX_EMPTY_BUCKETS {
+            self.buckets.retain(|(_, b)| !b.packets.is_empty());
+        }
+    }
+
+    /// The index of the lowest (`lowest`) or highest priority bucket holding packets.
+    fn occupied(&self, lowest: bool) -> Option<usize> {
+        if self.len == 0 {
+            return None;
+        }
+        if lowest {
+            self.buckets.iter().position(|(_, b)| !b.packets.is_empty())
+        } else {
+            self.buckets
+                .iter()
+                .rposition(|(_, b)| !b.packets.is_empty())
+        }
+    }
+
     /// The priority of the packet [`PacketQueue::drop_lowest`] would drop.
     pub(crate) fn lowest_priority(&self) -> Option<i32> {
-        self.buckets.first_key_value().map(|(p, _)| *p)
+        self.occupied(true).map(|i| self.buckets[i].0)
     }
 
     /// Drops the oldest packet of the lowest priority (counted as a drop) to make room
@@ -133,30 +185,20 @@ impl PacketQueue {
 
     /// Removes the oldest packet of the lowest (`lowest`) or highest priority.
     fn take(&mut self, lowest: bool) -> Option<Packet> {
-        let mut entry = if lowest {
-            self.buckets.first_entry()?
-        } else {
-            self.buckets.last_entry()?
-        };
-        let bucket = entry.get_mut();
-        let p = bucket.packets.pop_front();
-        if let Some(p) = &p {
-            let cost = Self::cost_of(p);
-            bucket.bytes -= cost;
-            self.bytes -= cost;
-            self.len -= 1;
-        }
-        if bucket.packets.is_empty() {
-            entry.remove();
-        }
-        p
+        let i = self.occupied(lowest)?;
+        let bucket = &mut self.buckets[i].1;
+        let p = bucket.packets.pop_front()?;
+        let cost = Self::cost_of(&p);
+        bucket.bytes -= cost;
+        self.bytes -= cost;
+        self.len -= 1;
+        Some(p)
     }
 
     /// The next packet to send, without removing it.
     pub fn peek(&self) -> Option<&Packet> {
-        self.buckets
-            .last_key_value()
-            .and_then(|(_, b)| b.packets.front())
+        self.occupied(false)
+            .and_then(|i| self.buckets[i].1.packets.front())
     }
 
     /// Removes and returns the next packet to send.
@@ -241,6 +283,24 @@ mod tests {
     }
 
     #[test]
+    fn empty_buckets_are_reused_and_bounded() {
+        let mut q = PacketQueue::default();
+        for prio in 0..100 {
+            q.push(pkt(prio as u8, 10), prio);
+            assert_eq!(q.pop().map(|p| p[0]), Some(prio as u8));
+            assert!(q.buckets.len() <= MAX_EMPTY_BUCKETS + 1);
+        }
+        // A priority whose bucket is kept: no new bucket, still in order.
+        let kept = q.buckets.len();
+        q.push(pkt(1, 10), q.buckets[0].0);
+        q.push(pkt(2, 10), 1000);
+        q.push(pkt(3, 10), -1000);
+        assert_eq!(q.buckets.len(), kept + 2);
+        assert_eq!(tags(&mut q), vec![2, 1, 3]);
+        assert_eq!(q.lowest_priority(), None);
+    }
+
+    #[test]
     fn full_queue_drops_lowest_priority_oldest() {
         let mut q = PacketQueue::new(cap(3, 10));
         q.push(pkt(1, 10), 0);
@@ -307,12 +367,9 @@ mod tests {
             }
         }
         assert!(q.dropped() > 0);
-        let mut last = i32::MAX;
-        // Whatever is left still comes out in priority order.
-        let prios: Vec<i32> = q.buckets.keys().rev().copied().collect();
-        for p in prios {
-            assert!(p <= last);
-            last = p;
-        }
+        // One bucket per priority, in ascending order, and no more than that.
+        let prios: Vec<i32> = q.buckets.iter().map(|(p, _)| *p).collect();
+        assert!(prios.windows(2).all(|w| w[0] < w[1]), "{prios:?}");
+        assert!(q.buckets.len() <= 4);
     }
 }

@@ -2,14 +2,37 @@
 //! their first valid frame arrived, and whose turn it is to send.
 
 use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
 use std::net::SocketAddr;
 
 use super::link::LinkId;
 
+/// A peer address as a key of the map: compared as the address, hashed (still by the
+/// keyed SipHash, since peers choose their addresses) from one or two integers instead
+/// of field by field, which takes a third of the instructions for every datagram.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PeerKey(SocketAddr);
+
+impl Hash for PeerKey {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        // Equal addresses write equal integers; what equality compares beyond them
+        // (an IPv6 flow label) only makes equal hashes more common, never wrong.
+        match self.0 {
+            SocketAddr::V4(a) => {
+                state.write_u64(u64::from(a.ip().to_bits()) << 16 | u64::from(a.port()))
+            }
+            SocketAddr::V6(a) => {
+                state.write_u128(a.ip().to_bits());
+                state.write_u64(u64::from(a.scope_id()) << 16 | u64::from(a.port()));
+            }
+        }
+    }
+}
+
 /// Peer address ↔ link of one datagram interface, and its round-robin turn.
 #[derive(Debug, Default)]
 pub struct Remotes {
-    by_address: HashMap<SocketAddr, LinkId>,
+    by_address: HashMap<PeerKey, LinkId>,
     /// Links in creation order with their peer address: the round-robin order.
     order: Vec<(LinkId, SocketAddr)>,
     /// Index into `order` of the link whose turn comes next.
@@ -20,12 +43,12 @@ impl Remotes {
     /// The link of `address`, if it has one.
     #[inline]
     pub(crate) fn link_of(&self, address: SocketAddr) -> Option<LinkId> {
-        self.by_address.get(&address).copied()
+        self.by_address.get(&PeerKey(address)).copied()
     }
 
     /// Records that `address` is link `id` (its first valid frame just arrived).
     pub(crate) fn insert(&mut self, address: SocketAddr, id: LinkId) {
-        self.by_address.insert(address, id);
+        self.by_address.insert(PeerKey(address), id);
         self.order.push((id, address));
     }
 
@@ -33,7 +56,7 @@ impl Remotes {
     pub(crate) fn remove(&mut self, id: LinkId) -> Option<SocketAddr> {
         let i = self.order.iter().position(|(l, _)| *l == id)?;
         let (_, address) = self.order.remove(i);
-        self.by_address.remove(&address);
+        self.by_address.remove(&PeerKey(address));
         if self.next_turn > i {
             self.next_turn -= 1;
         }
