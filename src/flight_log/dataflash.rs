@@ -130,10 +130,13 @@ impl Dataflash {
         if seqno == self.next {
             self.deliver(data, acts);
             self.drain(acts);
-        } else if !self.held.contains_key(&seqno) {
-            self.held.insert(seqno, Box::new(*data));
         } else {
-            acts.duplicates += 1;
+            match self.held.entry(seqno) {
+                std::collections::btree_map::Entry::Vacant(v) => {
+                    v.insert(Box::new(*data));
+                }
+                std::collections::btree_map::Entry::Occupied(_) => acts.duplicates += 1,
+            }
         }
         self.ask(now, NACKS_PER_BLOCK, acts);
         Verdict::Taken

@@ -13,6 +13,7 @@ use std::sync::Arc;
 use mio::Waker;
 
 use super::super::driver::Driver;
+use super::super::flight_log::FlightLogWriter;
 use super::super::log;
 use super::super::serial::SerialDriver;
 use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
@@ -123,6 +124,15 @@ impl Runtime {
         }
         if !done.new_keys.is_empty() && !done.signing_state_changed {
             self.restore_signing_state(config, &done.new_keys);
+        }
+        let wanted = config.flight_log.as_ref();
+        if self.flight_log.as_ref().map(|w| w.config()) != wanted {
+            // The engine ended the old log; its last writes go to the old writer.
+            self.write_flight_log();
+            if let Some(mut writer) = self.flight_log.take() {
+                writer.finish(RECORDER_FINISH);
+            }
+            self.flight_log = wanted.map(FlightLogWriter::start);
         }
         if done.record_changed {
             self.record();
