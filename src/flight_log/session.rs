@@ -311,15 +311,14 @@ impl FlightLogger {
             return;
         };
         let mut acts = Acts::default();
-        if d.block(seqno, &data, now, &mut acts) == Verdict::NewLog {
+        let new_log = d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
+        if new_log {
             // The autopilot started a new log (it rebooted): a new file.
             self.counters.lost += d.held() as u64;
             *d = Dataflash::new();
             d.block(seqno, &data, now, &mut acts);
-            self.finish_acts(std::mem::take(&mut acts), component);
             self.push_write(LogWrite::End);
             self.begin(Protocol::Dataflash);
-            return;
         }
         self.finish_acts(acts, component);
     }
