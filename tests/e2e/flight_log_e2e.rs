@@ -1,0 +1,159 @@
+//! Flight logs, end to end: the real router with a `flight_log` block and a scripted
+//! ArduPilot on 127.0.0.1 (`tests/py/ardupilot_log_peer.py`, pymavlink) that streams a
+//! real dataflash log with ArduPilot's protocol — REMOTE_LOG_BLOCK_STATUS start and
+//! stop, REMOTE_LOG_DATA_BLOCK, each block ACKed — leaving out the first sending of some
+//! blocks, which the router must NACK to get them resent. The written `.bin` is compared
+//! byte for byte with the source (zero-padded to whole blocks, as ArduPilot sends it)
+//! and read by pymavlink's DFReader. The log is made at test time
+//! (`tests/py/dataflash_log.py`).
+
+use crate::common;
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::router::{Router, Scratch, free_udp_port};
+use common::run_py;
+
+/// Makes a dataflash log of `records` ATT records (and FMT, PARM) at `path`.
+fn make_log(path: &str, records: usize) -> Vec<u8> {
+    run_py(
+        "dataflash_log.py",
+        &["make", path, "--records", &records.to_string()],
+        "",
+    );
+    fs::read(path).expect("the made log")
+}
+
+/// What DFReader reads in `path`: "NAME COUNT" lines and "total N".
+fn dfreader(path: &Path) -> String {
+    run_py(
+        "dataflash_log.py",
+        &["read", &path.display().to_string()],
+        "",
+    )
+}
+
+/// The `.bin` files in `dir`, oldest name first.
+fn bins(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = fs::read_dir(dir)
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    files.retain(|p| p.extension().is_some_and(|e| e == "bin"));
+    files.sort();
+    files
+}
+
+fn config(port: u16, logs: &str) -> String {
+    format!(
+        "udp {{ port {port}; }}\n\
+         flight_log {{ system 1; path {logs}/flight-%Y%m%d-%H%M%S; mode while_armed; min_free_bytes 0; }}\n\
+         default_action accept;\n"
+    )
+}
+
+/// The source as streamed: zero-padded to whole 200-byte blocks.
+fn padded(mut log: Vec<u8>) -> Vec<u8> {
+    log.resize(log.len().div_ceil(200) * 200, 0);
+    log
+}
+
+#[test]
+fn a_dataflash_log_streamed_with_gaps_is_written_whole_and_in_order() {
+    let scratch = Scratch::new("flight-log");
+    let source = make_log(&scratch.path("source.bin"), 3000);
+    let logs = scratch.path("logs");
+    let port = free_udp_port();
+    let router = Router::start(&scratch, &config(port, &logs), 1);
+    let out = run_py(
+        "ardupilot_log_peer.py",
+        &[
+            "--udp",
+            &format!("127.0.0.1:{port}"),
+            "--log",
+            &scratch.path("source.bin"),
+            "--skip",
+            "3,10,11,200",
+        ],
+        "",
+    );
+    let stopped = router.stop();
+    let line = out.lines().next().expect("a flight line");
+    let blocks = source.len().div_ceil(200);
+    assert!(
+        line.starts_with(&format!("flight 1 blocks {blocks} acks ")),
+        "{out}"
+    );
+    assert!(
+        line.contains("nacked 3,10,11,200 "),
+        "each skipped block NACKed: {out}"
+    );
+    assert!(
+        line.ends_with("stop yes"),
+        "the router stopped the stream at disarm: {out}"
+    );
+    let files = bins(Path::new(&logs));
+    assert_eq!(files.len(), 1, "one file per arming: {files:?}");
+    let written = fs::read(&files[0]).expect("the written log");
+    assert_eq!(written.len(), padded(source.clone()).len());
+    assert!(
+        written == padded(source),
+        "the written log differs from the source"
+    );
+    let read = dfreader(&files[0]);
+    assert!(read.contains("ATT 3000\n"), "{read}");
+    assert!(read.contains("PARM 20\n"), "{read}");
+    let report = stopped.stderr.join("\n");
+    assert!(
+        report.contains(&format!("flight log: 1 files, {blocks} blocks")),
+        "{report}"
+    );
+    // The file is on the router's list of logs it created (the only ones it removes).
+    let list = fs::read_to_string(Path::new(&logs).join(".flight-%Y%m%d-%H%M%S.bin.mavtables"))
+        .expect("the list of created logs");
+    let name = files[0]
+        .file_name()
+        .expect("name")
+        .to_string_lossy()
+        .to_string();
+    assert!(list.contains(&name), "{list}");
+}
+
+#[test]
+fn each_arming_is_one_file() {
+    let scratch = Scratch::new("flight-log-two");
+    let source = make_log(&scratch.path("source.bin"), 400);
+    let logs = scratch.path("logs");
+    let port = free_udp_port();
+    let router = Router::start(&scratch, &config(port, &logs), 1);
+    let out = run_py(
+        "ardupilot_log_peer.py",
+        &[
+            "--udp",
+            &format!("127.0.0.1:{port}"),
+            "--log",
+            &scratch.path("source.bin"),
+            "--flights",
+            "2",
+        ],
+        "",
+    );
+    assert_eq!(
+        out.lines().filter(|l| l.ends_with("stop yes")).count(),
+        2,
+        "{out}"
+    );
+    // Both closed before the router stops: each file whole already.
+    common::eventually("two logs written", Duration::from_secs(5), || {
+        let files = bins(Path::new(&logs));
+        files.len() == 2
+            && files
+                .iter()
+                .all(|f| fs::read(f).is_ok_and(|b| b == padded(source.clone())))
+    });
+    let stopped = router.stop();
+    assert_eq!(bins(Path::new(&logs)).len(), 2);
+    let report = stopped.stderr.join("\n");
+    assert!(report.contains("flight log: 2 files"), "{report}");
+}
