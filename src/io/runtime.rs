@@ -634,15 +634,28 @@ fn wall_micros() -> u64 {
         .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
 }
 
+/// Catches SIGXFSZ (a file-size limit reached), so that a write beyond the limit fails
+/// with an error, which the writer of `what` handles, instead of ending the process.
+fn catch_file_size_signal(what: &str) {
+    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
+        log::warn(&format_args!("{what}: cannot catch SIGXFSZ: {e}"));
+    }
+}
+
+/// Starts the flight log writer when `config` has a `flight_log` block.
+pub(super) fn start_flight_log(config: &Config) -> Option<FlightLogWriter> {
+    let log = config.flight_log.as_ref()?;
+    catch_file_size_signal("flight log");
+    Some(FlightLogWriter::start(log))
+}
+
 /// Starts recording when `config` has a `record` block: the core keeps the frames, the
 /// recorder writes them. A file-size limit (`RLIMIT_FSIZE`) then makes a write fail
 /// rather than end the process: SIGXFSZ is caught.
 fn start_recording(config: &Config, engine: &mut Engine) -> Option<Recorder> {
     let record = config.record.as_ref()?;
-    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
-        log::warn(&format_args!("recording: cannot catch SIGXFSZ: {e}"));
-    }
+    catch_file_size_signal("recording");
     let recorder = recorder::start(record)?;
     engine.set_recording(RecordFilter::new(record.only.clone()));
     Some(recorder)
@@ -724,7 +737,7 @@ fn start(
     }
     let state_file = open_state_file(config, &mut engine)?;
     let recorder = start_recording(config, &mut engine);
-    let flight_log = config.flight_log.as_ref().map(FlightLogWriter::start);
+    let flight_log = start_flight_log(config);
     let stats = start_stats(config)?;
     let notifier = Notifier::from_env();
     let next_watchdog = notifier

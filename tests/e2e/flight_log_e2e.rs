@@ -13,7 +13,11 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use common::router::{Router, Scratch, free_udp_port};
+use std::net::UdpSocket;
+use std::process::Command;
+
+use common::net::{heartbeat, udp_frames};
+use common::router::{BIN, Router, Scratch, free_udp_port};
 use common::run_py;
 
 /// Makes a dataflash log of `records` ATT records (and FMT, PARM) at `path`.
@@ -156,4 +160,95 @@ fn each_arming_is_one_file() {
     assert_eq!(bins(Path::new(&logs)).len(), 2);
     let report = stopped.stderr.join("\n");
     assert!(report.contains("flight log: 2 files"), "{report}");
+}
+
+/// The numbers of the counters line at exit: files, blocks written, bytes, resent,
+/// lost, dropped.
+fn exit_counters(stderr: &[String]) -> Vec<u64> {
+    let line = stderr
+        .iter()
+        .find(|l| l.contains("flight log: ") && l.contains(" files, "))
+        .unwrap_or_else(|| panic!("no flight log counters: {stderr:?}"));
+    line.split(|c: char| !c.is_ascii_digit())
+        .filter(|w| !w.is_empty())
+        .filter_map(|w| w.parse().ok())
+        .collect()
+}
+
+#[test]
+fn a_full_disk_drops_blocks_counted_and_routing_goes_on() {
+    let scratch = Scratch::new("flight-log-full");
+    let source = make_log(&scratch.path("source.bin"), 3000);
+    let logs = scratch.path("logs");
+    // The router under RLIMIT_FSIZE: no file may pass 20000 bytes, as on a full disk.
+    let wrapper = scratch.dir.join("limited.sh");
+    fs::write(
+        &wrapper,
+        format!("#!/bin/sh\nexec prlimit --fsize=20000 -- {BIN} \"$@\"\n"),
+    )
+    .expect("wrapper");
+    let chmod = Command::new("chmod")
+        .arg("755")
+        .arg(&wrapper)
+        .status()
+        .expect("chmod");
+    assert!(chmod.success());
+    let port = free_udp_port();
+    let router = Router::start_binary(
+        &wrapper.display().to_string(),
+        &scratch,
+        &config(port, &logs),
+        1,
+    );
+    // A ground station on the same router.
+    let gcs = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    gcs.connect(("127.0.0.1", port)).expect("connect");
+    gcs.send(&heartbeat(255)).expect("send");
+    let out = run_py(
+        "ardupilot_log_peer.py",
+        &[
+            "--udp",
+            &format!("127.0.0.1:{port}"),
+            "--log",
+            &scratch.path("source.bin"),
+        ],
+        "",
+    );
+    assert!(
+        out.contains("stop yes"),
+        "every block acknowledged all the same: {out}"
+    );
+    // The vehicle's heartbeats (10 a second while it streamed, a second or so) reached
+    // the ground station meanwhile.
+    let got = udp_frames(&gcs, 5, Duration::from_secs(5));
+    assert!(got.len() >= 5, "routing stopped: {} frames", got.len());
+    let stopped = router.stop();
+    let c = exit_counters(&stopped.stderr);
+    let blocks = source.len().div_ceil(200) as u64;
+    let (files, written, dropped) = (c[0], c[1], c[5]);
+    assert_eq!(files, 1, "{c:?}");
+    assert!(written > 0 && dropped > 0, "{c:?}");
+    assert_eq!(
+        written + dropped,
+        blocks,
+        "every block written or counted: {c:?}"
+    );
+    // What was written is blocks of the log, whole and in order (those that did not
+    // fit are left out, as lost blocks are).
+    let files = bins(Path::new(&logs));
+    let bytes = fs::read(&files[0]).expect("the written log");
+    assert!(
+        bytes.len() <= 20_000 && bytes.len() % 200 == 0,
+        "{}",
+        bytes.len()
+    );
+    assert_eq!(bytes.len() as u64, written * 200);
+    let source = padded(source);
+    let mut rest = source.chunks(200);
+    for (i, block) in bytes.chunks(200).enumerate() {
+        assert!(
+            rest.any(|s| s == block),
+            "written block {i} is not the next of the log"
+        );
+    }
 }

@@ -13,12 +13,13 @@ use std::sync::Arc;
 use mio::Waker;
 
 use super::super::driver::Driver;
-use super::super::flight_log::FlightLogWriter;
 use super::super::log;
 use super::super::serial::SerialDriver;
 use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
 use super::super::udp::UdpDriver;
-use super::{RECORDER_FINISH, Runtime, open_state_file, start_recording, start_stats};
+use super::{
+    RECORDER_FINISH, Runtime, open_state_file, start_flight_log, start_recording, start_stats,
+};
 use crate::config::{self, FromFile, Interface};
 use crate::routing::{InterfaceId, Request, Timestamp};
 use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
@@ -132,7 +133,7 @@ impl Runtime {
             if let Some(mut writer) = self.flight_log.take() {
                 writer.finish(RECORDER_FINISH);
             }
-            self.flight_log = wanted.map(FlightLogWriter::start);
+            self.flight_log = start_flight_log(config);
         }
         if done.record_changed {
             self.record();
