@@ -238,7 +238,7 @@ fn a_full_disk_drops_blocks_counted_and_routing_goes_on() {
     let files = bins(Path::new(&logs));
     let bytes = fs::read(&files[0]).expect("the written log");
     assert!(
-        bytes.len() <= 20_000 && bytes.len() % 200 == 0,
+        bytes.len() <= 20_000 && bytes.len().is_multiple_of(200),
         "{}",
         bytes.len()
     );
