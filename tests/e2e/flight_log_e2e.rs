@@ -252,3 +252,92 @@ fn a_full_disk_drops_blocks_counted_and_routing_goes_on() {
         );
     }
 }
+
+/// Makes a ulog of `samples` samples at `path`; its bytes and where its definitions end.
+fn make_ulog(path: &str, samples: usize) -> (Vec<u8>, String) {
+    run_py(
+        "ulog_log.py",
+        &["make", path, "--samples", &samples.to_string()],
+        "",
+    );
+    let defs = run_py("ulog_log.py", &["split", path], "");
+    (
+        fs::read(path).expect("the made ulog"),
+        defs.trim().to_string(),
+    )
+}
+
+/// The `.ulg` files in `dir`.
+fn ulgs(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = fs::read_dir(dir)
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    files.retain(|p| p.extension().is_some_and(|e| e == "ulg"));
+    files.sort();
+    files
+}
+
+/// Streams `source.ulg` from a scripted PX4 with `extra` arguments through a router
+/// with `protocol auto`; the peer's line, the written files and the router's exit.
+fn px4_flight(scratch: &Scratch, defs: &str, extra: &[&str]) -> (String, Vec<PathBuf>, Vec<u64>) {
+    let logs = scratch.path("logs");
+    let port = free_udp_port();
+    let router = Router::start(scratch, &config(port, &logs), 1);
+    let udp = format!("127.0.0.1:{port}");
+    let source = scratch.path("source.ulg");
+    let mut args = vec!["--udp", &udp, "--log", &source, "--defs", defs];
+    args.extend_from_slice(extra);
+    let out = run_py("px4_log_peer.py", &args, "");
+    let stopped = router.stop();
+    (out, ulgs(Path::new(&logs)), exit_counters(&stopped.stderr))
+}
+
+#[test]
+fn a_px4_ulog_is_written_whole_with_its_acknowledged_chunks_resent() {
+    let scratch = Scratch::new("flight-log-ulog");
+    let (source, defs) = make_ulog(&scratch.path("source.ulg"), 2000);
+    // The first sending of acknowledged chunk 1 is lost: the peer sends it again.
+    let (out, files, c) = px4_flight(&scratch, &defs, &["--skip-acked", "1"]);
+    assert!(out.contains(" resent 1 lost 0 stop yes"), "{out}");
+    assert_eq!(files.len(), 1, "{files:?}");
+    let written = fs::read(&files[0]).expect("the written ulog");
+    assert_eq!(written.len(), source.len());
+    assert!(
+        written == source,
+        "the written ulog differs from the source"
+    );
+    let read = run_py(
+        "ulog_log.py",
+        &["read", &files[0].display().to_string()],
+        "",
+    );
+    assert!(read.contains("samples 2000\n"), "{read}");
+    assert!(read.contains("params 30\n"), "{read}");
+    assert_eq!((c[0], c[4]), (1, 0), "one file, nothing lost: {c:?}");
+}
+
+#[test]
+fn a_lost_ulog_chunk_costs_only_the_messages_it_carried() {
+    let scratch = Scratch::new("flight-log-ulog-lost");
+    let (_, defs) = make_ulog(&scratch.path("source.ulg"), 2000);
+    let (out, files, c) = px4_flight(&scratch, &defs, &["--skip", "10,11,40"]);
+    assert!(out.contains(" lost 3 stop yes"), "{out}");
+    assert_eq!(files.len(), 1, "{files:?}");
+    let read = run_py(
+        "ulog_log.py",
+        &["read", &files[0].display().to_string()],
+        "",
+    );
+    let samples: usize = read
+        .lines()
+        .find_map(|l| l.strip_prefix("samples "))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{read}"));
+    // Each chunk carries about 249 / 27 samples, and the ones cut at its ends.
+    assert!((1960..2000).contains(&samples), "{read}");
+    assert!(
+        read.contains("increasing True"),
+        "whole samples, in order: {read}"
+    );
+    assert_eq!(c[4], 3, "three chunks lost: {c:?}");
+}
