@@ -356,3 +356,108 @@ fn a_ground_station_log_download_and_blocks_for_others_pass_through() {
     assert_eq!(got, [(AUTOPILOT, 117), (GCS, 118), (GCS, 184)]);
     assert_eq!(data(&v.writes()).1, 0);
 }
+
+mod props {
+    //! The state machine under arbitrary streams (as the `flight_log` fuzz target):
+    //! Begin and End in turn, ordered data only inside a log, frames that parse, and
+    //! never a deadline that would make the loop spin.
+
+    use std::time::Duration;
+
+    use mavtables::config::{FlightLog, FlightLogMode};
+    use mavtables::flight_log::{FlightLogger, LogWrite};
+    use mavtables::routing::Timestamp;
+    use mavtables::wire::Frame;
+    use proptest::prelude::*;
+
+    use super::encode;
+
+    #[derive(Debug, Clone)]
+    enum Op {
+        Beat(u8, bool),
+        Block(u32),
+        Chunk(bool, u16, u8, u8),
+        Wait(u16),
+        Shutdown,
+    }
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            (prop::sample::select(vec![3u8, 12, 8]), any::<bool>())
+                .prop_map(|(a, b)| Op::Beat(a, b)),
+            prop_oneof![0u32..80, any::<u32>()].prop_map(Op::Block),
+            (any::<bool>(), 0u16..40, any::<u8>(), any::<u8>())
+                .prop_map(|(a, s, l, f)| Op::Chunk(a, s, l, f)),
+            (0u16..3000).prop_map(Op::Wait),
+            Just(Op::Shutdown),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+        #[test]
+        fn begin_and_end_alternate_and_time_moves_on(
+            always in any::<bool>(),
+            ops in prop::collection::vec(op(), 1..300),
+        ) {
+            let mut config = FlightLog::with_defaults();
+            if always {
+                config.mode = FlightLogMode::Always;
+            }
+            let mut log = FlightLogger::new(&config);
+            let mut now = Timestamp::ZERO;
+            let mut open = false;
+            for op in ops {
+                let bytes = match op {
+                    Op::Beat(autopilot, armed) => {
+                        let base = if armed { 129 } else { 1 };
+                        Some(encode("1.1", 0, &[0, 0, 0, 0, 2, autopilot, base, 4, 3]))
+                    }
+                    Op::Block(seqno) => {
+                        let mut p = seqno.to_le_bytes().to_vec();
+                        p.extend_from_slice(&[245, 190]);
+                        p.extend_from_slice(&[seqno as u8 | 1; 200]);
+                        Some(encode("1.1", 184, &p))
+                    }
+                    Op::Chunk(acked, seq, len, first) => {
+                        let mut p = seq.to_le_bytes().to_vec();
+                        p.extend_from_slice(&[245, 190, len, first]);
+                        p.extend_from_slice(&[7; 249]);
+                        Some(encode("1.1", if acked { 267 } else { 266 }, &p))
+                    }
+                    Op::Wait(ms) => {
+                        now = now + Duration::from_millis(u64::from(ms));
+                        if log.poll_timeout().is_some_and(|t| t <= now) {
+                            log.handle_timeout(now);
+                            prop_assert!(log.poll_timeout().is_none_or(|t| t > now));
+                        }
+                        None
+                    }
+                    Op::Shutdown => {
+                        log.shutdown(now);
+                        None
+                    }
+                };
+                if let Some(b) = bytes {
+                    let f = Frame::parse_exact(&b).expect("valid frame");
+                    log.take(&f, now);
+                }
+                let mut ok = true;
+                log.drain_frames(&mut |f| ok &= Frame::parse_exact(&f).is_ok());
+                prop_assert!(ok);
+                let mut order = Ok(());
+                log.drain_writes(&mut |w| {
+                    let fine = match w {
+                        LogWrite::Begin(_) => !std::mem::replace(&mut open, true),
+                        LogWrite::End => std::mem::replace(&mut open, false),
+                        LogWrite::Data { .. } => open,
+                    };
+                    if !fine && order.is_ok() {
+                        order = Err(format!("{w:?} out of turn"));
+                    }
+                });
+                prop_assert!(order.is_ok(), "{:?}", order);
+            }
+        }
+    }
+}
