@@ -18,7 +18,7 @@ use std::process::Command;
 
 use common::net::{heartbeat, udp_frames};
 use common::router::{BIN, Router, Scratch, free_udp_port};
-use common::run_py;
+use common::{run_py, stats_router};
 
 /// Makes a dataflash log of `records` ATT records (and FMT, PARM) at `path`.
 fn make_log(path: &str, records: usize) -> Vec<u8> {
@@ -125,12 +125,12 @@ fn a_dataflash_log_streamed_with_gaps_is_written_whole_and_in_order() {
 }
 
 #[test]
-fn each_arming_is_one_file() {
+fn each_arming_is_one_file_counted_in_stats_and_metrics() {
     let scratch = Scratch::new("flight-log-two");
     let source = make_log(&scratch.path("source.bin"), 400);
     let logs = scratch.path("logs");
     let port = free_udp_port();
-    let router = Router::start(&scratch, &config(port, &logs), 1);
+    let (router, http) = stats_router::start(&scratch, &config(port, &logs));
     let out = run_py(
         "ardupilot_log_peer.py",
         &[
@@ -156,10 +156,48 @@ fn each_arming_is_one_file() {
                 .iter()
                 .all(|f| fs::read(f).is_ok_and(|b| b == padded(source.clone())))
     });
+    let blocks = source.len().div_ceil(200) as u64;
+    let s = common::eventually("the counters published", Duration::from_secs(5), || {
+        let s = stats_router::stats(http);
+        (s["flight_log"]["blocks_written"].as_u64() == Some(2 * blocks)).then_some(s)
+    });
+    let f = &s["flight_log"];
+    assert_eq!(f["files"].as_u64(), Some(2), "{f:#}");
+    assert_eq!(f["logs"].as_u64(), Some(2), "{f:#}");
+    assert_eq!(f["lost"].as_u64(), Some(0), "{f:#}");
+    assert!(f["streaming"].is_null(), "disarmed: {f:#}");
+    let metrics = metrics(http);
+    let parsed = run_py("prom_parse.py", &[], &metrics);
+    for (name, want) in [
+        ("mavtables_flight_log_files_total", 2),
+        ("mavtables_flight_log_blocks_written_total", 2 * blocks),
+        ("mavtables_flight_log_blocks_lost_total", 0),
+    ] {
+        let line = parsed
+            .lines()
+            .find(|l| l.contains(&format!("\"name\": \"{name}\"")))
+            .unwrap_or_else(|| panic!("no {name}: {parsed}"));
+        assert!(line.contains(&format!("\"value\": {want}.0")), "{line}");
+    }
     let stopped = router.stop();
     assert_eq!(bins(Path::new(&logs)).len(), 2);
     let report = stopped.stderr.join("\n");
     assert!(report.contains("flight log: 2 files"), "{report}");
+}
+
+/// The router's `/metrics` text.
+fn metrics(port: u16) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    s.set_read_timeout(Some(Duration::from_secs(5)))
+        .expect("timeout");
+    write!(s, "GET /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n").expect("request");
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).expect("answer");
+    answer
+        .split_once("\r\n\r\n")
+        .map(|(_, body)| body.to_string())
+        .expect("a body")
 }
 
 /// The numbers of the counters line at exit: files, blocks written, bytes, resent,
