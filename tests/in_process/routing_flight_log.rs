@@ -357,6 +357,37 @@ fn a_ground_station_log_download_and_blocks_for_others_pass_through() {
     assert_eq!(data(&v.writes()).1, 0);
 }
 
+#[test]
+fn a_reload_keeps_an_unchanged_log_and_ends_a_changed_one() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    v.statuses();
+    v.writes();
+    let reload = |v: &mut Vehicle, conf: &str| {
+        let config = config::load(conf).expect("config loads").config;
+        let keys = vec![None; config.interfaces.len()];
+        v.e.configure(&config, &keys, v.now);
+    };
+    reload(&mut v, CONF);
+    v.from(AUTOPILOT, &block(1, "245.190"));
+    assert_eq!(v.statuses(), [(1, 1)], "the same log goes on");
+    assert_eq!(data(&v.writes()).1, 1);
+    reload(
+        &mut v,
+        "udp { port 14550; }\nflight_log { system 1; max_files 3; }\ndefault_action accept;\n",
+    );
+    assert_eq!(v.statuses(), [(STOP, 1)]);
+    assert_eq!(v.writes(), [LogWrite::End]);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    assert_eq!(v.statuses(), [(START, 1)]);
+    assert_eq!(v.writes(), [LogWrite::Begin(Protocol::Dataflash)]);
+    reload(&mut v, "udp { port 14550; }\ndefault_action accept;\n");
+    assert_eq!(v.statuses(), [(STOP, 1)]);
+    assert_eq!(v.writes(), [LogWrite::End]);
+    assert!(v.e.flight_log_counters().is_none());
+}
+
 mod props {
     //! The state machine under arbitrary streams (as the `flight_log` fuzz target):
     //! Begin and End in turn, ordered data only inside a log, frames that parse, and
