@@ -73,6 +73,11 @@ impl Dataflash {
         Dataflash::default()
     }
 
+    /// The next seqno the file takes.
+    pub(crate) fn next(&self) -> u32 {
+        self.next
+    }
+
     /// Blocks held back behind a missing one.
     pub(crate) fn held(&self) -> usize {
         self.held.len()

@@ -77,6 +77,9 @@ struct Active {
     stream: Stream,
     /// When the start request goes again if no block came meanwhile.
     start_again: Timestamp,
+    /// The start request went again after blocks had come: a block 0 now is a new log
+    /// (the autopilot rebooted and answered it), not block 0 sent again.
+    restarted: bool,
 }
 
 /// The autopilot as its heartbeats describe it.
@@ -257,6 +260,7 @@ impl FlightLogger {
             protocol,
             stream: fresh(protocol),
             start_again: now + START_AGAIN,
+            restarted: false,
         });
         self.stop_again = None;
     }
@@ -307,11 +311,13 @@ impl FlightLogger {
             return self.late(Protocol::Dataflash, now);
         };
         active.start_again = now + START_AGAIN;
+        let restarted = std::mem::take(&mut active.restarted);
         let Stream::Dataflash(d) = &mut active.stream else {
             return;
         };
         let mut acts = Acts::default();
-        let new_log = d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
+        let new_log = (restarted && seqno == 0 && d.next() > 1)
+            || d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
         if new_log {
             // The autopilot started a new log (it rebooted): a new file.
             self.counters.lost += d.held() as u64;
@@ -414,6 +420,10 @@ impl FlightLogger {
         if now >= active.start_again {
             active.start_again = now + START_AGAIN;
             again = Some(active.protocol);
+            active.restarted = match &active.stream {
+                Stream::Dataflash(d) => d.next() > 0,
+                Stream::Ulog(_) => false,
+            };
         }
         let mut acts = Acts::default();
         if let Stream::Dataflash(d) = &mut active.stream {

@@ -318,6 +318,34 @@ fn an_autopilot_reboot_ends_the_log_and_its_next_log_is_a_new_file() {
 }
 
 #[test]
+fn an_autopilot_that_rebooted_while_heard_starts_a_new_file_at_the_start_asked_again() {
+    // Its heartbeats went on (another link, or a quick reboot): the blocks stopped, the
+    // start went again, and the log it answers with is numbered from 0.
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    for s in 0..20 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    v.writes();
+    v.statuses();
+    v.wait(Duration::from_millis(1100));
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    assert_eq!(v.statuses(), [(START, 1)]);
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    v.from(AUTOPILOT, &block(1, "245.190"));
+    let writes = v.writes();
+    assert_eq!(
+        writes[..2],
+        [LogWrite::End, LogWrite::Begin(Protocol::Dataflash)]
+    );
+    assert_eq!(data(&writes).0, expected(0..2));
+    // Without a start asked again, block 0 once more is a resend whose ACK was lost.
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    assert_eq!(v.statuses().last(), Some(&(0, 1)));
+    assert_eq!(v.writes(), []);
+}
+
+#[test]
 fn a_sequence_that_starts_again_mid_stream_is_a_new_file() {
     let mut v = Vehicle::new(
         "udp { port 14550; }\nflight_log { system 1; mode always; }\ndefault_action accept;\n",
