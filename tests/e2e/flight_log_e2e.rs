@@ -200,6 +200,44 @@ fn metrics(port: u16) -> String {
         .expect("a body")
 }
 
+#[test]
+fn a_link_that_drops_mid_flight_closes_the_file_and_the_next_arming_gets_a_new_one() {
+    let scratch = Scratch::new("flight-log-drop");
+    let source = padded(make_log(&scratch.path("source.bin"), 1000));
+    let logs = scratch.path("logs");
+    let port = free_udp_port();
+    let (router, http) = stats_router::start(&scratch, &config(port, &logs));
+    let udp = format!("127.0.0.1:{port}");
+    let log = scratch.path("source.bin");
+    let args = ["--udp", &udp, "--log", &log, "--vanish-after", "60"];
+    let out = run_py("ardupilot_log_peer.py", &args, "");
+    assert!(out.contains("vanished"), "{out}");
+    // Silent for 5 s: the log ends (its file closed) without a disarm.
+    common::eventually("the log closed", Duration::from_secs(10), || {
+        let s = stats_router::stats(http);
+        s["flight_log"]["logs"].as_u64() == Some(1) && s["flight_log"]["streaming"].is_null()
+    });
+    // The vehicle is back and arms: a new file, the whole log.
+    let out = run_py("ardupilot_log_peer.py", &args[..4], "");
+    assert!(out.contains("stop yes"), "{out}");
+    let stopped = router.stop();
+    let files = bins(Path::new(&logs));
+    assert_eq!(files.len(), 2, "{files:?}");
+    let first = fs::read(&files[0]).expect("the first log");
+    let second = fs::read(&files[1]).expect("the second log");
+    // The first holds the blocks that came before the drop (the peer sends up to 32
+    // ahead of its ACKs), whole and in order.
+    assert!(
+        first.len() >= 40 * 200 && first.len() < source.len(),
+        "{}",
+        first.len()
+    );
+    assert!(first[..] == source[..first.len()]);
+    assert!(second == source);
+    let c = exit_counters(&stopped.stderr);
+    assert_eq!(c[0], 2, "{c:?}");
+}
+
 /// The numbers of the counters line at exit: files, blocks written, bytes, resent,
 /// lost, dropped.
 fn exit_counters(stderr: &[String]) -> Vec<u64> {

@@ -3,7 +3,7 @@ MAVLink log backend does, for tests/e2e/flight_log_e2e.rs.
 
 usage:
   ardupilot_log_peer.py --udp HOST:PORT --log FILE [--skip S,S,...] [--flights N]
-                        [--sys S] [--window W]
+                        [--sys S] [--window W] [--vanish-after B]
 
 The peer is system 1 component 1, an ArduPilot (HEARTBEAT.autopilot 3) sending
 heartbeats every 100 ms. For each of N flights (default 1) it arms (base_mode has
@@ -14,6 +14,9 @@ from, with at most W (default 32) blocks not yet acknowledged. The first sending
 seqno in --skip is left out: only a NACK (status 0) or the peer's own resend timer
 (1 s, as ArduPilot) brings it. Once every block is ACKed it disarms and waits for the
 stop (seqno MAV_REMOTE_LOG_DATA_BLOCK_STOP).
+
+With --vanish-after B the peer goes silent for good (no heartbeat, nothing) once it
+has sent B blocks, as when the link drops mid-flight, and prints "vanished".
 
 It prints one line per flight, then "done":
   flight N blocks B acks A nacks K nacked S,S,... resent R stop yes|no
@@ -39,6 +42,7 @@ def main():
     ap.add_argument("--flights", type=int, default=1)
     ap.add_argument("--sys", type=int, default=1)
     ap.add_argument("--window", type=int, default=32)
+    ap.add_argument("--vanish-after", type=int, default=0)
     a = ap.parse_args()
     skip = {int(s) for s in a.skip.split(",") if s}
     data = open(a.log, "rb").read()
@@ -96,6 +100,9 @@ def main():
                 sent_at[s] = time.monotonic()
                 conn.mav.remote_log_data_block_send(client[0], client[1], s, blocks[s])
 
+            if a.vanish_after and nxt >= a.vanish_after:
+                print("vanished", flush=True)
+                return
             while nxt < len(blocks) and len([s for s in sent_at if s not in acked]) < a.window:
                 if nxt in skip and nxt not in first_skipped:
                     first_skipped.add(nxt)
