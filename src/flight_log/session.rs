@@ -365,11 +365,20 @@ impl FlightLogger {
             return self.late(Protocol::Ulog, now);
         };
         active.start_again = now + START_AGAIN;
+        let restarted = std::mem::take(&mut active.restarted);
         let Stream::Ulog(u) = &mut active.stream else {
             return;
         };
         let mut acts = UlogActs::default();
-        u.chunk(&chunk, &mut acts);
+        if restarted && chunk.sequence == 0 && u.started() {
+            // The autopilot answered the start asked again with a new log.
+            *u = Ulog::new();
+            u.chunk(&chunk, &mut acts);
+            self.push_write(LogWrite::End);
+            self.begin(Protocol::Ulog);
+        } else {
+            u.chunk(&chunk, &mut acts);
+        }
         self.counters.lost += acts.lost;
         self.counters.duplicates += acts.duplicates;
         self.write_data(acts.bytes, u64::from(acts.chunks));
@@ -422,7 +431,7 @@ impl FlightLogger {
             again = Some(active.protocol);
             active.restarted = match &active.stream {
                 Stream::Dataflash(d) => d.next() > 0,
-                Stream::Ulog(_) => false,
+                Stream::Ulog(u) => u.started(),
             };
         }
         let mut acts = Acts::default();

@@ -48,6 +48,11 @@ impl Ulog {
         }
     }
 
+    /// True once a chunk was taken.
+    pub(crate) fn started(&self) -> bool {
+        self.expected.is_some()
+    }
+
     /// Takes `chunk`.
     pub(crate) fn chunk(&mut self, chunk: &UlogChunk, acts: &mut UlogActs) {
         if let Some(expected) = self.expected {

@@ -345,6 +345,70 @@ fn an_autopilot_that_rebooted_while_heard_starts_a_new_file_at_the_start_asked_a
     assert_eq!(v.writes(), []);
 }
 
+/// LOGGING_DATA `sequence` to the router: one whole ulog message after the header
+/// (chunk 0 carries the 16-byte header first).
+fn ulog_chunk(sequence: u16) -> Vec<u8> {
+    let mut data = Vec::new();
+    if sequence == 0 {
+        data.extend_from_slice(b"ULog\x01\x12\x35\x01");
+        data.extend_from_slice(&[0; 8]);
+    }
+    data.extend_from_slice(&[4, 0, b'D', 0, 0, sequence as u8, 9]);
+    let mut p = sequence.to_le_bytes().to_vec();
+    p.extend_from_slice(&[
+        245,
+        190,
+        data.len() as u8,
+        if sequence == 0 { 16 } else { 0 },
+    ]);
+    p.extend_from_slice(&data);
+    encode("1.1", 266, &p)
+}
+
+#[test]
+fn a_px4_log_is_asked_for_with_a_command_and_a_restarted_one_is_a_new_file() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    let commands: Vec<(u16, u16)> = v
+        .sent()
+        .iter()
+        .filter_map(|(port, b)| {
+            let f = Frame::parse_exact(b).expect("valid");
+            let p = f.payload_padded();
+            (f.message_id() == 76).then(|| (*port, u16::from_le_bytes([p[28], p[29]])))
+        })
+        .collect();
+    assert_eq!(commands, [(AUTOPILOT, 2510)]);
+    assert_eq!(v.writes(), [LogWrite::Begin(Protocol::Ulog)]);
+    for s in 0..5 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    assert_eq!(data(&v.writes()), (ulog_bytes(0..5), 5));
+    // Stalled, asked again, answered from chunk 0: a new file.
+    v.wait(Duration::from_millis(1100));
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    v.sent();
+    v.from(AUTOPILOT, &ulog_chunk(0));
+    let writes = v.writes();
+    assert_eq!(
+        writes[..2],
+        [LogWrite::End, LogWrite::Begin(Protocol::Ulog)]
+    );
+    assert_eq!(data(&writes).0, ulog_bytes(0..1));
+}
+
+/// What the file gets of chunks `seqs` (see [`ulog_chunk`]).
+fn ulog_bytes(seqs: std::ops::Range<u16>) -> Vec<u8> {
+    let mut out = Vec::new();
+    for s in seqs {
+        let f = ulog_chunk(s);
+        let frame = Frame::parse_exact(&f).expect("valid");
+        let p = frame.payload_padded();
+        out.extend_from_slice(&p[6..6 + usize::from(p[4])]);
+    }
+    out
+}
+
 #[test]
 fn a_sequence_that_starts_again_mid_stream_is_a_new_file() {
     let mut v = Vehicle::new(
