@@ -238,6 +238,55 @@ fn a_link_that_drops_mid_flight_closes_the_file_and_the_next_arming_gets_a_new_o
     assert_eq!(c[0], 2, "{c:?}");
 }
 
+/// The REMOTE_LOG_BLOCK_STATUS seqnos (and statuses) among `frames`.
+fn statuses(frames: &[Vec<u8>]) -> Vec<(u32, u8)> {
+    frames
+        .iter()
+        .filter_map(|b| {
+            let f = mavtables::wire::Frame::parse_exact(b).ok()?;
+            let p = f.payload_padded();
+            (f.message_id() == 185).then(|| (u32::from_le_bytes([p[0], p[1], p[2], p[3]]), p[6]))
+        })
+        .collect()
+}
+
+#[test]
+fn shutdown_while_armed_stops_the_stream_and_closes_the_file() {
+    let scratch = Scratch::new("flight-log-shutdown");
+    let logs = scratch.path("logs");
+    let port = free_udp_port();
+    let router = Router::start(&scratch, &config(port, &logs), 1);
+    let vehicle = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    vehicle.connect(("127.0.0.1", port)).expect("connect");
+    // An armed ArduPilot.
+    let armed = common::net::with_payload(0, 1, 0, &[0, 0, 0, 0, 2, 3, 129, 4, 3]);
+    vehicle.send(&armed).expect("send");
+    let got = udp_frames(&vehicle, 1, Duration::from_secs(5));
+    assert_eq!(statuses(&got), [(2_147_483_646, 1)], "the start request");
+    for seqno in 0u32..3 {
+        let mut p = seqno.to_le_bytes().to_vec();
+        p.extend_from_slice(&[245, 190]);
+        p.extend_from_slice(&[seqno as u8 + 1; 200]);
+        vehicle
+            .send(&common::net::with_payload(184, 1, seqno as u8, &p))
+            .expect("send");
+    }
+    let got = udp_frames(&vehicle, 3, Duration::from_secs(5));
+    assert_eq!(statuses(&got), [(0, 1), (1, 1), (2, 1)]);
+    let stopped = router.stop();
+    let got = udp_frames(&vehicle, 1, Duration::from_secs(2));
+    assert_eq!(
+        statuses(&got),
+        [(2_147_483_645, 1)],
+        "the stop request at shutdown"
+    );
+    let files = bins(Path::new(&logs));
+    assert_eq!(files.len(), 1);
+    let want: Vec<u8> = (1u8..=3).flat_map(|b| [b; 200]).collect();
+    assert_eq!(fs::read(&files[0]).expect("the log"), want);
+    assert_eq!(exit_counters(&stopped.stderr)[..2], [1, 3]);
+}
+
 /// The numbers of the counters line at exit: files, blocks written, bytes, resent,
 /// lost, dropped.
 fn exit_counters(stderr: &[String]) -> Vec<u64> {
