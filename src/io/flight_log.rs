@@ -423,10 +423,12 @@ impl Writer {
         }
         let Some((file, name)) = opened else {
             let why = failed.unwrap_or_else(|| "every name of the pattern is taken".to_string());
-            self.trouble = true;
-            log::warn(&format_args!(
-                "flight log: {why}; blocks are dropped and counted"
-            ));
+            // Said once until writing works again (it is tried with each batch).
+            if !std::mem::replace(&mut self.trouble, true) {
+                log::warn(&format_args!(
+                    "flight log: {why}; blocks are dropped and counted until it works again"
+                ));
+            }
             return;
         };
         list.made.add(&name, &file);
