@@ -181,8 +181,17 @@ impl FlightLogger {
         true
     }
 
-    /// An autopilot heartbeat from component `component`.
+    /// An autopilot heartbeat from component `component`. While the autopilot heard
+    /// first is alive, another component's heartbeat (one more flight controller of
+    /// the vehicle, a peripheral saying it is an autopilot) is not taken: its armed
+    /// state would start and stop logs in turn.
     fn heard(&mut self, component: u8, beat: Beat, now: Timestamp) {
+        if self
+            .autopilot
+            .is_some_and(|a| a.component != component && now < a.last + AUTOPILOT_LOST)
+        {
+            return;
+        }
         self.autopilot = Some(Autopilot {
             component,
             beat,

@@ -279,6 +279,19 @@ fn one_log_per_arming() {
 }
 
 #[test]
+fn another_component_saying_it_is_an_autopilot_does_not_flap_the_log() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    let other = encode("1.2", 0, &[0, 0, 0, 0, 2, 3, 1, 4, 3]);
+    for _ in 0..3 {
+        v.from(AUTOPILOT, &other);
+        v.from(AUTOPILOT, &heartbeat(3, true));
+    }
+    assert_eq!(v.statuses(), [(START, 1)], "one start, no stop");
+    assert_eq!(v.writes(), [LogWrite::Begin(Protocol::Dataflash)]);
+}
+
+#[test]
 fn the_start_is_asked_again_until_blocks_come() {
     let mut v = Vehicle::new(CONF);
     v.from(AUTOPILOT, &heartbeat(3, true));
