@@ -23,6 +23,9 @@ pub const AUTOPILOT_LOST: Duration = Duration::from_secs(5);
 pub const START_AGAIN: Duration = Duration::from_secs(1);
 /// Blocks still coming after a stop are answered with another stop at most this often.
 pub const STOP_AGAIN: Duration = Duration::from_secs(1);
+/// After the stop request at disarm, blocks already on their way are still taken into
+/// the log for this long; then its file is closed.
+pub const DRAIN: Duration = Duration::from_secs(2);
 /// Most bytes waiting for the writer (taken every loop turn): beyond, blocks are
 /// dropped and counted.
 pub const WRITES_BOUND: usize = 8 << 20;
@@ -80,6 +83,8 @@ struct Active {
     /// The start request went again after blocks had come: a block 0 now is a new log
     /// (the autopilot rebooted and answered it), not block 0 sent again.
     restarted: bool,
+    /// Stopped at disarm: the blocks on their way are taken until then, and the log ends.
+    ending: Option<Timestamp>,
 }
 
 /// The autopilot as its heartbeats describe it.
@@ -221,11 +226,15 @@ impl FlightLogger {
         let protocol = if want { self.protocol() } else { None };
         match (&self.active, protocol) {
             (None, Some(p)) => self.start(p, now),
-            (Some(a), Some(p)) if a.protocol != p => {
+            (Some(a), Some(p)) if a.protocol != p || a.ending.is_some() => {
+                // Another protocol, or armed again while the last log drains.
                 self.stop(now);
                 self.start(p, now);
             }
-            (Some(_), None) => self.stop(now),
+            (Some(a), None) if a.ending.is_none() && self.autopilot.is_some() => {
+                self.begin_ending(now);
+            }
+            (Some(_), None) if self.autopilot.is_none() => self.stop(now),
             _ => {}
         }
     }
@@ -270,6 +279,7 @@ impl FlightLogger {
             stream: fresh(protocol),
             start_again: now + START_AGAIN,
             restarted: false,
+            ending: None,
         });
         self.stop_again = None;
     }
@@ -280,16 +290,30 @@ impl FlightLogger {
         self.push_write(LogWrite::Begin(protocol));
     }
 
-    /// Ends the log: asks the autopilot to stop, tells the writer.
+    /// Asks the autopilot to stop (it disarmed); the log ends `DRAIN` later, with the
+    /// blocks that were on their way.
+    fn begin_ending(&mut self, now: Timestamp) {
+        if let Some(active) = self.active.as_mut() {
+            active.ending = Some(now + DRAIN);
+            let protocol = active.protocol;
+            self.send_stop(protocol);
+            self.stop_again = Some(now + STOP_AGAIN);
+        }
+    }
+
+    /// Ends the log now: asks the autopilot to stop (unless it was asked already),
+    /// tells the writer.
     fn stop(&mut self, now: Timestamp) {
         if let Some(active) = self.active.take() {
             if let Stream::Dataflash(d) = &active.stream {
                 // Blocks held behind a gap that will not be filled now.
                 self.counters.lost += d.held() as u64;
             }
-            self.send_stop(active.protocol);
+            if active.ending.is_none() {
+                self.send_stop(active.protocol);
+                self.stop_again = Some(now + STOP_AGAIN);
+            }
             self.push_write(LogWrite::End);
-            self.stop_again = Some(now + STOP_AGAIN);
         }
     }
 
@@ -431,11 +455,19 @@ impl FlightLogger {
             self.autopilot = None;
             self.decide(now);
         }
+        if self
+            .active
+            .as_ref()
+            .and_then(|a| a.ending)
+            .is_some_and(|t| now >= t)
+        {
+            self.stop(now);
+        }
         let Some(active) = self.active.as_mut() else {
             return;
         };
         let mut again = None;
-        if now >= active.start_again {
+        if active.ending.is_none() && now >= active.start_again {
             active.start_again = now + START_AGAIN;
             again = Some(active.protocol);
             active.restarted = match &active.stream {
@@ -462,7 +494,8 @@ impl FlightLogger {
                 Stream::Dataflash(d) => d.poll_timeout(),
                 Stream::Ulog(_) => None,
             };
-            ask.map_or(a.start_again, |t| t.min(a.start_again))
+            let next = a.ending.unwrap_or(a.start_again);
+            ask.map_or(next, |t| t.min(next))
         });
         [lost, active].into_iter().flatten().min()
     }

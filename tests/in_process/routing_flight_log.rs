@@ -181,12 +181,36 @@ fn arming_starts_the_log_each_block_is_acked_and_disarming_stops_it() {
     assert_eq!(v.statuses(), [(0, 1), (1, 1), (2, 1)]);
     let writes = v.writes();
     assert_eq!(data(&writes), (expected(0..3), 3));
-    // The blocks reached nobody else.
     v.from(AUTOPILOT, &heartbeat(3, false));
     assert_eq!(v.statuses(), [(STOP, 1)]);
+    // A block that was on its way is still taken into this log; the file is closed
+    // once the blocks on their way had time to come.
+    v.from(AUTOPILOT, &block(3, "245.190"));
+    assert_eq!(v.statuses(), [(3, 1)]);
+    assert_eq!(data(&v.writes()), (expected(3..4), 1));
+    v.wait(Duration::from_millis(1900));
+    assert_eq!(v.writes(), []);
+    v.wait(Duration::from_millis(200));
     assert_eq!(v.writes(), [LogWrite::End]);
     let (c, streaming) = v.e.flight_log_counters().expect("configured");
-    assert_eq!((c.blocks, c.logs, streaming), (3, 1, None));
+    assert_eq!((c.blocks, c.logs, c.late, streaming), (4, 1, 0, None));
+}
+
+#[test]
+fn arming_again_while_the_last_log_drains_begins_the_next_file_at_once() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    v.from(AUTOPILOT, &heartbeat(3, false));
+    v.writes();
+    v.statuses();
+    v.wait(Duration::from_millis(500));
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    assert_eq!(v.statuses(), [(START, 1)]);
+    assert_eq!(
+        v.writes(),
+        [LogWrite::End, LogWrite::Begin(Protocol::Dataflash)]
+    );
 }
 
 #[test]
@@ -262,6 +286,7 @@ fn one_log_per_arming() {
         }
         v.from(AUTOPILOT, &heartbeat(3, false));
         v.from(AUTOPILOT, &heartbeat(3, false));
+        v.wait(Duration::from_millis(2100));
         let writes = v.writes();
         assert_eq!(writes.first(), Some(&LogWrite::Begin(Protocol::Dataflash)));
         assert_eq!(writes.last(), Some(&LogWrite::End));
