@@ -23,6 +23,8 @@
 //!   of the files a configuration names (keys, signing state, a fixed recording name —
 //!   the one upward arrow: whether that file is a recording is read through
 //!   `io::manifest`);
+//! - [`flight_log`]: the autopilot's flight log streamed to the router: when to ask
+//!   for it, acknowledgements, block order (sans-IO; the writer is in [`io`]);
 //! - [`filter`]: the filter chains;
 //! - [`stats`]: statistics of a running router (snapshots, rate history, the `/stats`
 //!   JSON and the Prometheus text), sans-IO;
@@ -46,6 +48,7 @@ pub mod config;
 pub mod dialect;
 pub(crate) mod files;
 pub mod filter;
+pub mod flight_log;
 pub mod io;
 pub mod recording;
 pub mod routing;

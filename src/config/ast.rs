@@ -114,6 +114,14 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<HeartbeatSetting>,
     },
+    /// `flight_log { ... }`: the autopilot's flight log, streamed to the router and
+    /// written to files.
+    FlightLog {
+        /// The `flight_log` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<FlightLogSetting>,
+    },
     /// `chain NAME { rules }`
     Chain {
         /// The chain name.
@@ -171,6 +179,25 @@ pub enum HeartbeatSetting {
     Component(Span),
     /// `interval DURATION;`
     Interval(Span),
+}
+
+/// A statement of a `flight_log` block; each span covers the value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlightLogSetting {
+    /// `system N;`: the vehicle whose autopilot's log is streamed.
+    System(Span),
+    /// `source S.C;`: the router's own address in the stream.
+    Source(Span),
+    /// `path PATTERN;`: where the logs are written (the extension is added).
+    Path(Span),
+    /// `mode always|while_armed;`
+    Mode(Span),
+    /// `protocol auto|dataflash|ulog;`
+    Protocol(Span),
+    /// `max_files N;`
+    MaxFiles(Span),
+    /// `min_free_bytes N;`
+    MinFreeBytes(Span),
 }
 
 /// A written `yes` or `no` after a statement keyword.

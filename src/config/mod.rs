@@ -11,6 +11,7 @@ pub(crate) mod ast;
 pub(crate) mod claims;
 pub(crate) mod diagnostic;
 pub(crate) mod file;
+pub(crate) mod flight_log;
 pub(crate) mod keys;
 pub(crate) mod lexer;
 pub(crate) mod lines;
@@ -30,6 +31,7 @@ mod values;
 
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};
+pub use flight_log::{FlightLog, FlightLogMode, FlightLogProtocol};
 pub use keys::{StateFileError, check_signing_state, read_keys};
 pub use lines::LineIndex;
 pub use model::{

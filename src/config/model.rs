@@ -45,6 +45,8 @@ pub struct Config {
     pub groups: Vec<InterfaceGroup>,
     /// The router's own heartbeat (the `heartbeat` block), if configured.
     pub heartbeat: Option<Heartbeat>,
+    /// The autopilot's flight log streamed to the router (the `flight_log` block).
+    pub flight_log: Option<super::FlightLog>,
 }
 
 /// `unknown_messages accept|reject;`.
@@ -81,6 +83,7 @@ impl Config {
             dedup: None,
             groups: Vec::new(),
             heartbeat: None,
+            flight_log: None,
         }
     }
 

@@ -24,6 +24,7 @@ const TOP_LEVEL: &[&str] = &[
     "unknown_messages",
     "dedup",
     "heartbeat",
+    "flight_log",
 ];
 const STATS_STATEMENTS: &[&str] = &["address", "port", "allow"];
 const UDP_STATEMENTS: &[&str] = &[
@@ -49,6 +50,15 @@ const SERIAL_STATEMENTS: &[&str] = &[
 ];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
 const HEARTBEAT_STATEMENTS: &[&str] = &["system", "component", "interval"];
+const FLIGHT_LOG_STATEMENTS: &[&str] = &[
+    "system",
+    "source",
+    "path",
+    "mode",
+    "protocol",
+    "max_files",
+    "min_free_bytes",
+];
 const RECORD_STATEMENTS: &[&str] = &[
     "path",
     "max_file_bytes",
@@ -231,6 +241,14 @@ impl<'a> Parser<'a> {
                 Ok(Item::Dedup {
                     keyword: span,
                     value,
+                })
+            }
+            "flight_log" => {
+                self.c.word();
+                let settings = self.block(span, Self::flight_log_setting)?;
+                Ok(Item::FlightLog {
+                    keyword: span,
+                    settings,
                 })
             }
             "heartbeat" => {
@@ -514,6 +532,48 @@ impl<'a> Parser<'a> {
                 HeartbeatSetting::Interval(self.duration("expected a duration, e.g. 1s or 500ms")?)
             }
             _ => return Err(unsupported(span, word, HEARTBEAT_STATEMENTS)),
+        };
+        self.semicolon(false)?;
+        Ok(setting)
+    }
+
+    /// A statement of a `flight_log` block; the values are checked by the semantics.
+    fn flight_log_setting(&mut self) -> Result<FlightLogSetting> {
+        const BYTES: &str = "expected a valid number of bytes";
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let setting = match word {
+            "system" => {
+                self.c.word();
+                FlightLogSetting::System(self.number("expected a valid system id")?)
+            }
+            "source" => {
+                self.c.word();
+                FlightLogSetting::Source(self.path("expected the router's address, e.g. 245.190")?)
+            }
+            "path" => {
+                self.c.word();
+                FlightLogSetting::Path(self.path("expected the path of the flight logs")?)
+            }
+            "mode" => {
+                self.c.word();
+                FlightLogSetting::Mode(self.path("expected 'always' or 'while_armed'")?)
+            }
+            "protocol" => {
+                self.c.word();
+                FlightLogSetting::Protocol(self.path("expected 'auto', 'dataflash' or 'ulog'")?)
+            }
+            "max_files" => {
+                self.c.word();
+                FlightLogSetting::MaxFiles(self.number("expected a valid number of files")?)
+            }
+            "min_free_bytes" => {
+                self.c.word();
+                FlightLogSetting::MinFreeBytes(self.number(BYTES)?)
+            }
+            _ => return Err(unsupported(span, word, FLIGHT_LOG_STATEMENTS)),
         };
         self.semicolon(false)?;
         Ok(setting)
@@ -947,6 +1007,7 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
             ("queue", QUEUE_STATEMENTS),
             ("record", RECORD_STATEMENTS),
             ("heartbeat", HEARTBEAT_STATEMENTS),
+            ("flight_log", FLIGHT_LOG_STATEMENTS),
         ]
         .into_iter()
         .filter(|(_, list)| list.contains(&word) && candidates != *list)

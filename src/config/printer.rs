@@ -127,6 +127,21 @@ impl Printer<'_, '_> {
                     self.node(1, span, name, Some(span));
                 }
             }
+            Item::FlightLog { keyword, settings } => {
+                self.node(0, *keyword, "flight_log", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        FlightLogSetting::System(v) => ("system", *v),
+                        FlightLogSetting::Source(v) => ("source", *v),
+                        FlightLogSetting::Path(v) => ("path", *v),
+                        FlightLogSetting::Mode(v) => ("mode", *v),
+                        FlightLogSetting::Protocol(v) => ("protocol", *v),
+                        FlightLogSetting::MaxFiles(v) => ("max_files", *v),
+                        FlightLogSetting::MinFreeBytes(v) => ("min_free_bytes", *v),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Chain { name, rules } => {
                 self.node(0, *name, "chain", Some(*name));
                 for rule in rules {

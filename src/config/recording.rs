@@ -83,7 +83,7 @@ pub(crate) fn check(
 
 /// What is wrong (and a note) when `pattern` makes names longer than a file system
 /// allows: a recording's with the largest suffix, or its list's temporary file's.
-fn too_long(pattern: &FilePattern) -> Option<(String, String)> {
+pub(crate) fn too_long(pattern: &FilePattern) -> Option<(String, String)> {
     let longest = pattern.longest_name();
     if longest > NAME_MAX {
         return Some((

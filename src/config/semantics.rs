@@ -70,6 +70,8 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
     let mut dedup_line: Option<usize> = None;
     let mut heartbeat = None;
     let mut heartbeat_line: Option<usize> = None;
+    let mut flight_log = None;
+    let mut flight_log_line: Option<usize> = None;
     let mut groups: Vec<InterfaceGroup> = Vec::new();
     let mut chains: Vec<Chain> = cx
         .names
@@ -217,6 +219,19 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                     }
                 }
             }
+            Item::FlightLog { keyword, settings } => {
+                let checked = super::flight_log::check(ast, settings, &mut cx.errors);
+                match flight_log_line {
+                    Some(first) => cx.error(
+                        Diagnostic::new(*keyword, "only one 'flight_log' block is allowed")
+                            .with_note(format!("the first 'flight_log' block is on line {first}")),
+                    ),
+                    None => {
+                        flight_log_line = Some(cx.line(*keyword));
+                        flight_log = checked;
+                    }
+                }
+            }
             Item::Chain { name, rules } => {
                 let id = cx.ids[ast.text(*name)];
                 for rule in rules {
@@ -271,6 +286,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
             dedup,
             groups,
             heartbeat,
+            flight_log,
         },
         warnings,
     })

@@ -11,10 +11,13 @@
 //! - `log`: log lines and messages, written without ever blocking the loop;
 //! - `recorder`: `.tlog` recordings, written by a thread of their own; `manifest`: the
 //!   file listing the recordings it created (the only ones it removes);
+//! - `flight_log`: the flight logs streamed from the autopilot, written by a thread of
+//!   their own (sharing the recorder's list of created files and rotation);
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
+mod flight_log;
 mod log;
 pub(crate) mod manifest;
 mod notify;

@@ -551,7 +551,7 @@ impl Writer {
 }
 
 /// The local calendar time now (UTC if the C library cannot tell).
-fn local_now() -> LocalTime {
+pub(super) fn local_now() -> LocalTime {
     let secs = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| i64::try_from(d.as_secs()).unwrap_or(i64::MAX));

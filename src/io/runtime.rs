@@ -24,6 +24,7 @@ use slab::Slab;
 mod apply;
 
 use super::driver::{Driver, Progress};
+use super::flight_log::FlightLogWriter;
 use super::log::{self, Logger};
 use super::notify::Notifier;
 use super::recorder::{self, Recorder};
@@ -92,6 +93,8 @@ struct Runtime {
     state_file: Option<StateFile>,
     /// The recorder, when the configuration has a `record` block.
     recorder: Option<Recorder>,
+    /// The flight log writer, when the configuration has a `flight_log` block.
+    flight_log: Option<FlightLogWriter>,
     /// The statistics endpoint, if configured.
     stats: Option<StatsServer>,
     /// Rung by look-ups of host names; drivers of clients added by a reload get it too.
@@ -124,6 +127,7 @@ impl Runtime {
         };
         let mut snapshot = self.engine.stats(now);
         snapshot.recording = self.recorder_stats();
+        snapshot.flight_log = self.flight_log.as_ref().map(|w| w.stats(&self.engine));
         server.publish(snapshot);
     }
 
@@ -147,6 +151,21 @@ impl Runtime {
         }
     }
 
+    /// Hands the flight log's ordered bytes to its writer.
+    fn write_flight_log(&mut self) {
+        if let Some(writer) = &mut self.flight_log {
+            writer.take_from(&mut self.engine);
+        }
+    }
+
+    /// Closes the flight log (at exit): the stop request was sent with the last frames.
+    fn finish_flight_log(&mut self) {
+        self.write_flight_log();
+        if let Some(writer) = &mut self.flight_log {
+            writer.finish(RECORDER_FINISH);
+        }
+    }
+
     /// The recorder's counters, when the router records.
     fn recorder_stats(&self) -> Option<RecorderStats> {
         let recorder = self.recorder.as_ref()?;
@@ -158,6 +177,9 @@ impl Runtime {
         let mut text = self.engine.report();
         if let Some(stats) = self.recorder_stats() {
             text.push_str(&format!("  {stats}\n"));
+        }
+        if let Some(writer) = &self.flight_log {
+            text.push_str(&format!("  {}\n", writer.stats(&self.engine)));
         }
         text
     }
@@ -494,6 +516,8 @@ impl Runtime {
                                 reload = true;
                             } else if stop_by.is_none() {
                                 stop_by = Some(now + SHUTDOWN_FLUSH);
+                                // The stop request goes out with the last frames.
+                                self.engine.stop_flight_log(now);
                                 if let Some(notifier) = &self.notifier {
                                     notifier.stopping();
                                 }
@@ -534,6 +558,7 @@ impl Runtime {
             }
             self.handle_notices(now);
             self.record();
+            self.write_flight_log();
             self.flush_ready(now);
             self.handle_notices(now);
             self.arm_timer(now);
@@ -566,6 +591,7 @@ pub fn run(config: &Config, keys: &[Option<SigningKey>], loglevel: u8, source: O
             let result = rt.run();
             rt.save_signing_state_at_exit();
             rt.finish_recording();
+            rt.finish_flight_log();
             rt.handle_notices(rt.now());
             rt.logger.flush();
             log::stderr_text(&rt.report());
@@ -608,15 +634,28 @@ fn wall_micros() -> u64 {
         .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
 }
 
+/// Catches SIGXFSZ (a file-size limit reached), so that a write beyond the limit fails
+/// with an error, which the writer of `what` handles, instead of ending the process.
+fn catch_file_size_signal(what: &str) {
+    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
+        log::warn(&format_args!("{what}: cannot catch SIGXFSZ: {e}"));
+    }
+}
+
+/// Starts the flight log writer when `config` has a `flight_log` block.
+pub(super) fn start_flight_log(config: &Config) -> Option<FlightLogWriter> {
+    let log = config.flight_log.as_ref()?;
+    catch_file_size_signal("flight log");
+    Some(FlightLogWriter::start(log))
+}
+
 /// Starts recording when `config` has a `record` block: the core keeps the frames, the
 /// recorder writes them. A file-size limit (`RLIMIT_FSIZE`) then makes a write fail
 /// rather than end the process: SIGXFSZ is caught.
 fn start_recording(config: &Config, engine: &mut Engine) -> Option<Recorder> {
     let record = config.record.as_ref()?;
-    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
-        log::warn(&format_args!("recording: cannot catch SIGXFSZ: {e}"));
-    }
+    catch_file_size_signal("recording");
     let recorder = recorder::start(record)?;
     engine.set_recording(RecordFilter::new(record.only.clone()));
     Some(recorder)
@@ -698,6 +737,7 @@ fn start(
     }
     let state_file = open_state_file(config, &mut engine)?;
     let recorder = start_recording(config, &mut engine);
+    let flight_log = start_flight_log(config);
     let stats = start_stats(config)?;
     let notifier = Notifier::from_env();
     let next_watchdog = notifier
@@ -719,6 +759,7 @@ fn start(
         start,
         state_file,
         recorder,
+        flight_log,
         stats,
         waker,
         source: source.map(str::to_string),

@@ -27,6 +27,7 @@
 //! counter. The routing decisions themselves are the [`Router`]'s.
 
 mod configure;
+mod flight_log;
 mod input;
 mod interfaces;
 mod paths;
@@ -61,6 +62,7 @@ use super::stale::StaleTail;
 use super::time::Timestamp;
 use crate::address::Address;
 use crate::config::{Config, PeerLimits};
+use crate::flight_log::FlightLogger;
 use crate::recording::{RecordFilter, Tap};
 use crate::signing::sign;
 use crate::signing::state::SavedState;
@@ -116,6 +118,8 @@ pub struct Engine {
     due: Vec<InterfaceId>,
     /// The router's own heartbeat, when configured.
     heartbeat: Option<OwnHeartbeat>,
+    /// File writes of a flight logger replaced by a reload, not yet taken.
+    flight_log_leftover: Vec<crate::flight_log::LogWrite>,
 }
 
 /// The parts of the engine every received frame goes through, apart from the
@@ -131,6 +135,8 @@ struct Core {
     signing: Signing,
     /// Frames kept for recording, when the router records.
     tap: Option<Tap>,
+    /// The autopilot's flight log, when configured.
+    flight_log: Option<FlightLogger>,
 }
 
 impl Core {
@@ -157,6 +163,7 @@ impl Core {
             described,
             tap: self.tap.as_mut(),
             group,
+            flight_log: self.flight_log.as_mut(),
         }
     }
 }
@@ -183,6 +190,7 @@ impl Engine {
                 unknown: UnknownIds::default(),
                 signing: Signing::default(),
                 tap: None,
+                flight_log: None,
             },
             interfaces: Slab::new(),
             next_tick: Timestamp::ZERO + TICK,
@@ -198,6 +206,7 @@ impl Engine {
             owner: ready::ByLink::default(),
             due: Vec::new(),
             heartbeat: None,
+            flight_log_leftover: Vec::new(),
         }
     }
 

@@ -3,6 +3,7 @@
 //! refused never becomes a link), the recording tap (admitted frames only), the sender's link (a datagram remote gets one on its
 //! first valid frame), counters, and unknown message ids reported once per id.
 
+use crate::flight_log::FlightLogger;
 use std::collections::{HashSet, VecDeque};
 use std::net::SocketAddr;
 
@@ -87,6 +88,9 @@ pub(crate) struct Intake<'a> {
     pub tap: Option<&'a mut Tap>,
     /// The interface's group, which a new link joins.
     pub group: Option<GroupId>,
+    /// The flight log, when configured: it takes the stream's frames addressed to the
+    /// router and notes the autopilot's heartbeats.
+    pub flight_log: Option<&'a mut FlightLogger>,
 }
 
 impl Intake<'_> {
@@ -173,6 +177,13 @@ impl ParseEvents for Intake<'_> {
             self.router.dedup_mut().note(h, self.now);
         }
         let id = self.link();
+        if let Some(log) = self.flight_log.as_deref_mut()
+            && log.take(&frame, self.now)
+        {
+            // The stream between the autopilot and the router: not routed.
+            self.router.take_for_router(id, &frame, self.now, self.out);
+            return;
+        }
         if (signed || frame.is_unknown())
             && let Some(c) = self.router.counters_mut(id)
         {

@@ -17,7 +17,10 @@
 //!   first: `dedup`);
 //! - `router::redundancy`: `group`s of links that are one path to a vehicle, and the
 //!   router's own address; `own_heartbeat`: the `heartbeat` block's frames, on the
-//!   core's own deadline;
+//!   core's own deadline; the engine drives the `flight_log` block's
+//!   [`FlightLogger`](crate::flight_log::FlightLogger) (the stream's frames taken in
+//!   `intake`, its requests and ACKs queued to the vehicle's links, its deadline among
+//!   the engine's);
 //! - `reload`: what a new configuration changes (interfaces matched by identity, rules
 //!   by text), which [`Engine::configure`] applies at start and at every reload;
 //! - `link`, `pool` (addresses with expiry), `counters`, `event` (log events and

@@ -221,5 +221,6 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         filter_cache_hits: cache.hits,
         filter_cache_misses: cache.misses,
         recording: None,
+        flight_log: None,
     }
 }

@@ -5,6 +5,7 @@ use serde_json::{Map, Value, json};
 
 use super::history::HISTORY_LEN;
 use super::snapshot::{LinkStats, StatsSnapshot};
+use crate::flight_log::FlightLogStats;
 use crate::recording::RecorderStats;
 
 /// The version of the JSON's shape.
@@ -68,6 +69,7 @@ pub fn to_value(s: &StatsSnapshot) -> Value {
         "queued_bytes": s.queued_bytes,
         "filter_cache": {"hits": s.filter_cache_hits, "misses": s.filter_cache_misses},
         "recording": s.recording.as_ref().map_or(Value::Null, recording),
+        "flight_log": s.flight_log.as_ref().map_or(Value::Null, flight_log),
     })
 }
 
@@ -115,6 +117,28 @@ fn recording(r: &RecorderStats) -> Value {
         "files": r.files,
         "removed": r.removed,
         "current_path": r.current_path,
+    })
+}
+
+/// The flight log's counters.
+fn flight_log(f: &FlightLogStats) -> Value {
+    let s = &f.stream;
+    json!({
+        "streaming": f.streaming,
+        "logs": s.logs,
+        "blocks": s.blocks,
+        "nacks": s.nacks,
+        "resent": s.resent,
+        "lost": s.lost,
+        "duplicates": s.duplicates,
+        "late": s.late,
+        "dropped_queue_full": s.dropped,
+        "blocks_written": f.blocks_written,
+        "bytes_written": f.bytes_written,
+        "dropped_disk": f.blocks_dropped_disk,
+        "files": f.files,
+        "removed": f.removed,
+        "current_path": f.current_path,
     })
 }
 

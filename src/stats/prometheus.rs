@@ -5,6 +5,7 @@
 use std::fmt::Write;
 
 use super::snapshot::{LinkStats, StatsSnapshot};
+use crate::flight_log::FlightLogStats;
 use crate::recording::RecorderStats;
 
 /// The content type of the text format.
@@ -308,6 +309,9 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
     if let Some(r) = &s.recording {
         recording(&mut o, r);
     }
+    if let Some(f) = &s.flight_log {
+        flight_log(&mut o, f);
+    }
     o.0
 }
 
@@ -347,6 +351,69 @@ fn recording(o: &mut Out, r: &RecorderStats) {
         "Recording files opened (one at start, one per rotation).",
     );
     o.sample("mavtables_recording_files_total", &[], r.files);
+}
+
+/// The flight log's families (only with a `flight_log` block).
+fn flight_log(o: &mut Out, f: &FlightLogStats) {
+    let s = &f.stream;
+    let counters = [
+        (
+            "mavtables_flight_log_blocks_written_total",
+            "Log blocks (ulog chunks) written to flight log files.",
+            f.blocks_written,
+        ),
+        (
+            "mavtables_flight_log_bytes_written_total",
+            "Bytes written to flight log files.",
+            f.bytes_written,
+        ),
+        (
+            "mavtables_flight_log_blocks_resent_total",
+            "Missing log blocks that came after the router asked for them again.",
+            s.resent,
+        ),
+        (
+            "mavtables_flight_log_blocks_lost_total",
+            "Log blocks that never came (given up), or ulog chunks lost.",
+            s.lost,
+        ),
+        (
+            "mavtables_flight_log_nacks_total",
+            "Missing log blocks asked for again (NACKs sent).",
+            s.nacks,
+        ),
+        (
+            "mavtables_flight_log_files_total",
+            "Flight log files created.",
+            f.files,
+        ),
+    ];
+    for (name, help, value) in counters {
+        o.family(name, "counter", help);
+        o.sample(name, &[], value);
+    }
+    o.family(
+        "mavtables_flight_log_blocks_dropped_total",
+        "counter",
+        "Log blocks received but not written, by reason.",
+    );
+    for (reason, n) in [("queue_full", s.dropped), ("disk", f.blocks_dropped_disk)] {
+        o.sample(
+            "mavtables_flight_log_blocks_dropped_total",
+            &[("reason", reason)],
+            n,
+        );
+    }
+    o.family(
+        "mavtables_flight_log_streaming",
+        "gauge",
+        "1 while a flight log is being streamed from the autopilot.",
+    );
+    o.sample(
+        "mavtables_flight_log_streaming",
+        &[],
+        u64::from(f.streaming.is_some()),
+    );
 }
 
 #[cfg(test)]

@@ -37,6 +37,8 @@ pub struct StatsSnapshot {
     /// What the recorder did, when the router records (the I/O layer fills it in: the
     /// recorder is a thread of its own).
     pub recording: Option<RecorderStats>,
+    /// The flight log's counters, when the router writes flight logs.
+    pub flight_log: Option<crate::flight_log::FlightLogStats>,
 }
 
 /// Frames dropped, by reason. A link's receive-side reasons (`no_route`, `bad_crc`,

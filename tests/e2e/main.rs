@@ -17,6 +17,7 @@ mod cli;
 mod config_signing;
 mod dialect_runtime;
 mod file_limits;
+mod flight_log_e2e;
 mod forwarding_exact;
 mod log_backpressure;
 mod peers_mavproxy;

@@ -793,7 +793,8 @@ fn mistakes_in_the_record_block_are_located() {
         assert_eq!(got.lines().next(), Some(*want), "{src:?}:\n{got}");
     }
     assert!(
-        first_error("udp { max_files 3; }").contains("'max_files' belongs in a 'record' block")
+        first_error("udp { max_files 3; }")
+            .contains("'max_files' belongs in a 'record' or 'flight_log' block")
     );
     assert!(first_error("record { only if Attitude; }").contains("'ATTITUDE'"));
     // Every mistake of a block is reported, not only the first.

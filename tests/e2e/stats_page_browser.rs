@@ -186,6 +186,8 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
     assert!(counter(0, "packets") >= 3 && counter(0, "decided") >= 3);
     assert!(counter(1, "packets") > 0 && counter(1, "decided") > 0);
     assert!(dom.contains("reject if HEARTBEAT from 2.0/8"), "{dom}");
+    // Without a flight_log block its section says so.
+    assert!(dom.contains("no flight_log block"), "{dom}");
 
     let png = scratch.dir.join("status-page.png");
     browser::screenshot(&scratch, &url, 3000, &png);

@@ -9,6 +9,7 @@ mod routing;
 
 mod config_ast;
 mod config_errors;
+mod config_flight_log;
 mod config_model;
 mod config_network;
 mod config_paths;
@@ -20,6 +21,7 @@ mod filter_memo;
 mod rate_caps;
 mod routing_cases;
 mod routing_engine;
+mod routing_flight_log;
 mod routing_queues_props;
 mod routing_ready;
 mod routing_redundancy;

@@ -17,7 +17,9 @@ use super::super::log;
 use super::super::serial::SerialDriver;
 use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
 use super::super::udp::UdpDriver;
-use super::{RECORDER_FINISH, Runtime, open_state_file, start_recording, start_stats};
+use super::{
+    RECORDER_FINISH, Runtime, open_state_file, start_flight_log, start_recording, start_stats,
+};
 use crate::config::{self, FromFile, Interface};
 use crate::routing::{InterfaceId, Request, Timestamp};
 use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
@@ -123,6 +125,15 @@ impl Runtime {
         }
         if !done.new_keys.is_empty() && !done.signing_state_changed {
             self.restore_signing_state(config, &done.new_keys);
+        }
+        let wanted = config.flight_log.as_ref();
+        if self.flight_log.as_ref().map(|w| w.config()) != wanted {
+            // The engine ended the old log; its last writes go to the old writer.
+            self.write_flight_log();
+            if let Some(mut writer) = self.flight_log.take() {
+                writer.finish(RECORDER_FINISH);
+            }
+            self.flight_log = start_flight_log(config);
         }
         if done.record_changed {
             self.record();

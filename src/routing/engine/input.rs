@@ -123,6 +123,7 @@ impl Engine {
 
     /// Moves the router's events into the notices and readies its output for reuse.
     pub(super) fn take_output(&mut self) {
+        self.send_flight_log_frames();
         for link in &self.core.out.queued {
             if let Some(&id) = self.owner.get(link) {
                 self.ready.mark(id);

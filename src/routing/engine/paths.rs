@@ -29,6 +29,7 @@ impl Engine {
         self.core
             .router
             .set_own_address(self.heartbeat.as_ref().map(OwnHeartbeat::address));
+        self.apply_flight_log(config, now);
         let mut numbers: HashMap<&str, GroupId> = HashMap::new();
         let mut group_of: Vec<Option<GroupId>> = vec![None; config.interfaces.len()];
         for g in &config.groups {

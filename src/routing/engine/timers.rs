@@ -19,7 +19,12 @@ impl Engine {
             .deadlines
             .first()
             .map_or(self.next_tick, |t| t.min(self.next_tick));
-        self.heartbeat.as_ref().map_or(due, |h| due.min(h.due()))
+        let due = self.heartbeat.as_ref().map_or(due, |h| due.min(h.due()));
+        self.core
+            .flight_log
+            .as_ref()
+            .and_then(FlightLogger::poll_timeout)
+            .map_or(due, |t| due.min(t))
     }
 
     /// Runs what is due at `now` (see [`Engine::poll_timeout`]). Calling it early, or
@@ -35,6 +40,11 @@ impl Engine {
         due.clear();
         self.due = due;
         self.send_heartbeat(now);
+        if let Some(log) = self.core.flight_log.as_mut()
+            && log.poll_timeout().is_some_and(|t| t <= now)
+        {
+            log.handle_timeout(now);
+        }
         if now >= self.next_tick {
             for id in self.core.router.tick(now) {
                 self.forget(id);

@@ -114,6 +114,35 @@ impl Router {
         self.learn_source(i, frame.source(), now, out);
     }
 
+    /// Takes in a frame addressed to the router itself (its flight log stream),
+    /// received on link `id` at `now`: counted as received, its source learned there,
+    /// routed nowhere.
+    pub(crate) fn take_for_router(
+        &mut self,
+        id: LinkId,
+        frame: &Frame<'_>,
+        now: Timestamp,
+        out: &mut Output,
+    ) {
+        let Some(i) = self.index(id) else {
+            return;
+        };
+        let counters = &mut self.links[i].counters;
+        counters.received(frame.as_bytes().len());
+        self.learn_source(i, frame.source(), now, out);
+    }
+
+    /// Queues the router's own `packet` for system `system` on the links that know an
+    /// address of it, at priority 0 (its flight log requests and acknowledgements).
+    pub(crate) fn queue_own_to(&mut self, system: u8, packet: &Packet, out: &mut Output) {
+        for k in 0..self.by_system[usize::from(system)].len() {
+            let id = self.by_system[usize::from(system)][k];
+            if let Some(i) = self.index(id) {
+                self.push(i, packet.clone(), 0, out);
+            }
+        }
+    }
+
     /// Queues the router's own `packet` (its heartbeat) on every link, at priority 0,
     /// within the queue bounds as any packet.
     pub(crate) fn queue_own(&mut self, packet: &Packet, out: &mut Output) {

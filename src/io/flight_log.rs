@@ -1,0 +1,492 @@
+//! The flight log writer: the logs the core puts in order ([`Engine::poll_flight_log`])
+//! written by a thread of their own, so that the event loop never waits for a disk.
+//!
+//! One file per log: created with the log's first bytes (a log that gets none leaves
+//! no file; a file left empty by a failed write is removed), named after the time then
+//! with the `path` pattern and the protocol's extension (`.bin`, `.ulg`), and closed
+//! (synced) at the log's end. Each file is created afresh (never opened if it exists)
+//! and put on the list of logs the router created (the recorder's [`MadeList`]); the
+//! oldest of that list only are removed beyond `max_files` and while the disk has less
+//! than `min_free_bytes` free (the recorder's `rotation` rules). Bytes that do not fit
+//! — the queue is full, the disk fails or has no room — are dropped and counted, never
+//! packets; each kind of trouble is said once.
+//!
+//! [`Engine::poll_flight_log`]: crate::routing::Engine::poll_flight_log
+
+use std::collections::HashMap;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use super::manifest::MadeList;
+use super::recorder::local_now;
+use super::{log, sys};
+use crate::config::FlightLog;
+use crate::flight_log::{FlightLogStats, LogWrite, Protocol};
+use crate::recording::FilePattern;
+use crate::recording::pattern::MAX_SUFFIX;
+use crate::recording::rotation;
+use crate::routing::Engine;
+
+/// What may wait for the writer: seconds of the fastest log stream.
+const QUEUE_BOUND: usize = 16 << 20;
+/// The writer takes the queue at least this often.
+const WRITE_EVERY: Duration = Duration::from_millis(200);
+
+/// Writes waiting for the writer.
+#[derive(Default)]
+struct Queue {
+    items: Vec<LogWrite>,
+    bytes: usize,
+    stop: bool,
+}
+
+#[derive(Default)]
+struct Counters {
+    blocks: AtomicU64,
+    bytes: AtomicU64,
+    files: AtomicU64,
+    removed: AtomicU64,
+    dropped: AtomicU64,
+}
+
+fn add(counter: &AtomicU64, n: u64) {
+    counter.fetch_add(n, Ordering::Relaxed);
+}
+
+#[derive(Default)]
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+    done: Mutex<bool>,
+    done_cv: Condvar,
+    counters: Counters,
+    current: Mutex<Option<String>>,
+}
+
+/// The loop's handle on the writer.
+pub(super) struct FlightLogWriter {
+    shared: Arc<Shared>,
+    writer: Option<JoinHandle<()>>,
+    config: FlightLog,
+}
+
+impl FlightLogWriter {
+    /// Starts the writer for `config`.
+    pub(super) fn start(config: &FlightLog) -> FlightLogWriter {
+        let shared = Arc::new(Shared::default());
+        let writer_shared = shared.clone();
+        let cfg = config.clone();
+        let writer = thread::Builder::new()
+            .name("flight-log".into())
+            .spawn(move || {
+                Writer {
+                    config: cfg,
+                    shared: writer_shared,
+                    lists: HashMap::new(),
+                    begun: None,
+                    file: None,
+                    trouble: false,
+                }
+                .run();
+            })
+            .map_err(|e| log::error(&format_args!("flight log: cannot start the writer: {e}")))
+            .ok();
+        FlightLogWriter {
+            shared,
+            writer,
+            config: config.clone(),
+        }
+    }
+
+    /// The configuration it writes for.
+    pub(super) fn config(&self) -> &FlightLog {
+        &self.config
+    }
+
+    /// Queues what the core has for the file.
+    pub(super) fn take_from(&mut self, engine: &mut Engine) {
+        let mut q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut dropped = 0;
+        let mut any = false;
+        engine.poll_flight_log(&mut |w| {
+            if let LogWrite::Data { bytes, blocks } = &w {
+                if q.bytes + bytes.len() > QUEUE_BOUND {
+                    dropped += blocks;
+                    return;
+                }
+                q.bytes += bytes.len();
+            }
+            q.items.push(w);
+            any = true;
+        });
+        if any && q.items.iter().any(|w| !matches!(w, LogWrite::Data { .. })) {
+            self.shared.wake.notify_one();
+        }
+        drop(q);
+        add(&self.shared.counters.dropped, dropped);
+    }
+
+    /// The writer's counters, joined with the core's.
+    pub(super) fn stats(&self, engine: &Engine) -> FlightLogStats {
+        let c = &self.shared.counters;
+        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let (stream, streaming) = engine.flight_log_counters().unwrap_or_default();
+        FlightLogStats {
+            stream,
+            blocks_written: get(&c.blocks),
+            bytes_written: get(&c.bytes),
+            files: get(&c.files),
+            removed: get(&c.removed),
+            blocks_dropped_disk: get(&c.dropped),
+            streaming,
+            current_path: self
+                .shared
+                .current
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
+        }
+    }
+
+    /// Lets the writer write what is queued and close its file, waiting at most
+    /// `timeout` (a stuck disk cannot hold the exit).
+    pub(super) fn finish(&mut self, timeout: Duration) {
+        {
+            let mut q = self
+                .shared
+                .queue
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            q.stop = true;
+            self.shared.wake.notify_one();
+        }
+        let Some(writer) = self.writer.take() else {
+            return;
+        };
+        let deadline = Instant::now() + timeout;
+        let mut done = self
+            .shared
+            .done
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        while !*done {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                log::warn(&format_args!(
+                    "flight log: the writer did not finish within {timeout:?}; the last blocks may be lost"
+                ));
+                return;
+            }
+            done = self
+                .shared
+                .done_cv
+                .wait_timeout(done, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        drop(done);
+        let _ = writer.join();
+    }
+}
+
+/// The list of logs of one extension: its pattern and the files it made.
+struct List {
+    pattern: FilePattern,
+    dir: PathBuf,
+    made: MadeList,
+}
+
+/// The file being written.
+struct Open {
+    file: File,
+    ext: &'static str,
+    name: String,
+    size: u64,
+}
+
+struct Writer {
+    config: FlightLog,
+    shared: Arc<Shared>,
+    /// By extension.
+    lists: HashMap<&'static str, List>,
+    /// The log begun, whose file is created with its first bytes.
+    begun: Option<Protocol>,
+    file: Option<Open>,
+    /// Whether blocks are being dropped (said once until writing works again).
+    trouble: bool,
+}
+
+impl Writer {
+    fn run(mut self) {
+        let mut batch = Vec::new();
+        loop {
+            let stop = self.wait(&mut batch);
+            for w in batch.drain(..) {
+                self.apply(w);
+            }
+            if stop {
+                break;
+            }
+        }
+        self.close();
+        let mut done = self
+            .shared
+            .done
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        *done = true;
+        self.shared.done_cv.notify_all();
+    }
+
+    fn wait(&self, batch: &mut Vec<LogWrite>) -> bool {
+        let deadline = Instant::now() + WRITE_EVERY;
+        let mut q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        while !q.stop && q.bytes < QUEUE_BOUND / 4 {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            q = self
+                .shared
+                .wake
+                .wait_timeout(q, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        std::mem::swap(&mut q.items, batch);
+        q.bytes = 0;
+        q.stop
+    }
+
+    fn apply(&mut self, w: LogWrite) {
+        match w {
+            LogWrite::Begin(p) => {
+                self.close();
+                self.begun = Some(p);
+            }
+            LogWrite::Data { bytes, blocks } => self.write(&bytes, blocks),
+            LogWrite::End => {
+                self.close();
+                self.begun = None;
+            }
+        }
+    }
+
+    fn write(&mut self, bytes: &[u8], blocks: u64) {
+        let counters = &self.shared.counters;
+        if self.file.is_none() {
+            let Some(p) = self.begun else {
+                add(&counters.dropped, blocks);
+                return;
+            };
+            if !self.make_room(p.extension(), bytes.len() as u64) {
+                self.dropped(
+                    blocks,
+                    &"less than min_free_bytes free on the disk even without the older logs",
+                );
+                return;
+            }
+            self.open_new(p);
+        } else if let Some(ext) = self.file.as_ref().map(|f| f.ext)
+            && !self.make_room(ext, bytes.len() as u64)
+        {
+            self.dropped(
+                blocks,
+                &"less than min_free_bytes free on the disk even without the older logs",
+            );
+            return;
+        }
+        let Some(open) = self.file.as_mut() else {
+            add(&self.shared.counters.dropped, blocks);
+            return;
+        };
+        match open.file.write_all(bytes) {
+            Ok(()) => {
+                open.size += bytes.len() as u64;
+                let counters = &self.shared.counters;
+                add(&counters.blocks, blocks);
+                add(&counters.bytes, bytes.len() as u64);
+                if self.trouble {
+                    self.trouble = false;
+                    log::warn(&"flight log: writing again");
+                }
+            }
+            Err(e) => {
+                // Cut back to whole blocks: a block cut short would garble the rest.
+                let _ = open.file.set_len(open.size);
+                let what = format!("cannot write {}: {e}", open.name);
+                self.dropped(blocks, &what);
+            }
+        }
+    }
+
+    fn dropped(&mut self, blocks: u64, why: &dyn std::fmt::Display) {
+        add(&self.shared.counters.dropped, blocks);
+        if !self.trouble {
+            self.trouble = true;
+            log::warn(&format_args!(
+                "flight log: {why}; blocks are dropped and counted until it works again"
+            ));
+        }
+    }
+
+    /// The list of `ext`'s logs, read when first needed.
+    fn list(&mut self, ext: &'static str) -> Option<&mut List> {
+        if !self.lists.contains_key(ext) {
+            let path = self.config.path_pattern(ext, |k| std::env::var(k).ok());
+            let pattern = match FilePattern::parse(&path) {
+                Ok(p) => p,
+                Err(e) => {
+                    log::error(&format_args!("flight log: path {path}: {}", e.message));
+                    return None;
+                }
+            };
+            let dir = PathBuf::from(pattern.dir());
+            let made = MadeList::open(&pattern);
+            self.lists.insert(ext, List { pattern, dir, made });
+        }
+        self.lists.get_mut(ext)
+    }
+
+    /// Removes old logs while the disk would have less than `min_free_bytes` free after
+    /// writing `needed` bytes; false if that is not enough.
+    fn make_room(&mut self, ext: &'static str, needed: u64) -> bool {
+        let min_free = self.config.min_free_bytes;
+        if min_free == 0 {
+            return true;
+        }
+        let current = self.file.as_ref().map(|f| f.name.clone());
+        let Some(list) = self.list(ext) else {
+            return false;
+        };
+        let _ = fs::create_dir_all(&list.dir);
+        let Ok(free) = sys::free_bytes(&list.dir) else {
+            return true;
+        };
+        if free >= min_free.saturating_add(needed) {
+            return true;
+        }
+        let files = list.made.recordings();
+        let plan = rotation::make_room(&files, free, needed, min_free, current.as_deref());
+        if !plan.remove.is_empty() {
+            self.remove(ext, &plan.remove, "to keep min_free_bytes free");
+        }
+        plan.enough
+    }
+
+    /// Creates the file of a new log in `p`, then removes the oldest beyond `max_files`.
+    fn open_new(&mut self, p: Protocol) {
+        let ext = p.extension();
+        let max_files = self.config.max_files;
+        let Some(list) = self.list(ext) else {
+            return;
+        };
+        let _ = fs::create_dir_all(&list.dir);
+        let time = local_now();
+        let mut opened = None;
+        let mut failed = None;
+        for n in 0..=MAX_SUFFIX {
+            let name = list.pattern.name(&time, n);
+            match OpenOptions::new()
+                .append(true)
+                .create_new(true)
+                .mode(0o640)
+                .open(list.dir.join(&name))
+            {
+                Ok(file) => {
+                    opened = Some((file, name));
+                    break;
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+                Err(e) => {
+                    failed = Some(format!(
+                        "cannot create {}: {e}",
+                        list.dir.join(&name).display()
+                    ));
+                    break;
+                }
+            }
+        }
+        let Some((file, name)) = opened else {
+            let why = failed.unwrap_or_else(|| "every name of the pattern is taken".to_string());
+            // Said once until writing works again (it is tried with each batch).
+            if !std::mem::replace(&mut self.trouble, true) {
+                log::warn(&format_args!(
+                    "flight log: {why}; blocks are dropped and counted until it works again"
+                ));
+            }
+            return;
+        };
+        list.made.add(&name, &file);
+        let path = list.dir.join(&name).display().to_string();
+        let files = list.made.recordings();
+        let excess = rotation::over_count(&files, max_files, Some(&name));
+        list.made.save();
+        add(&self.shared.counters.files, 1);
+        log::warn(&format_args!("flight log: writing {path}"));
+        *self
+            .shared
+            .current
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(path);
+        self.file = Some(Open {
+            file,
+            ext,
+            name,
+            size: 0,
+        });
+        self.remove(ext, &excess, "beyond max_files");
+    }
+
+    /// Removes the logs `names` of `ext` and takes them off its list.
+    fn remove(&mut self, ext: &'static str, names: &[String], why: &str) {
+        if names.is_empty() {
+            return;
+        }
+        let shared = self.shared.clone();
+        let Some(list) = self.list(ext) else {
+            return;
+        };
+        for name in names {
+            let path = list.dir.join(name);
+            match fs::remove_file(&path) {
+                Ok(()) => add(&shared.counters.removed, 1),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => {
+                    log::warn(&format_args!(
+                        "flight log: cannot remove {} ({why}): {e}",
+                        path.display()
+                    ));
+                    continue;
+                }
+            }
+            list.made.forget(name);
+        }
+        list.made.save();
+    }
+
+    /// Syncs and closes the open file; one left empty (every write failed) is removed.
+    fn close(&mut self) {
+        let Some(open) = self.file.take() else {
+            return;
+        };
+        let _ = open.file.sync_data();
+        if open.size == 0 {
+            self.remove(open.ext, std::slice::from_ref(&open.name), "it is empty");
+        }
+    }
+}
