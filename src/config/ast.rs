@@ -46,6 +46,13 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<SocketSetting>,
     },
+    /// `websocket { ... }`: a server for browsers; the statements of `tcp` but `connect`.
+    WebSocket {
+        /// The `websocket` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<SocketSetting>,
+    },
     /// `serial { ... }`
     Serial {
         /// The `serial` keyword.

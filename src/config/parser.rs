@@ -14,6 +14,7 @@ const TOP_LEVEL: &[&str] = &[
     "default_action",
     "udp",
     "tcp",
+    "websocket",
     "serial",
     "queue",
     "chain",
@@ -166,6 +167,14 @@ impl<'a> Parser<'a> {
                     settings,
                 })
             }
+            "websocket" => {
+                self.c.word();
+                let settings = self.block(span, Self::socket_setting)?;
+                Ok(Item::WebSocket {
+                    keyword: span,
+                    settings,
+                })
+            }
             "serial" => {
                 self.c.word();
                 let settings = self.block(span, Self::serial_setting)?;
@@ -287,7 +296,7 @@ impl<'a> Parser<'a> {
         }
     }
 
-    /// A statement of a `udp` or `tcp` block.
+    /// A statement of a `udp`, `tcp` or `websocket` block.
     fn socket_setting(&mut self) -> Result<SocketSetting> {
         let (span, word) = match self.c.peek_word() {
             Some(found) => found,

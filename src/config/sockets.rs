@@ -1,4 +1,4 @@
-//! The meaning of a `udp` or `tcp` block: values checked and defaults filled in, and the
+//! The meaning of a `udp`, `tcp` or `websocket` block: values checked and defaults filled in, and the
 //! rules of clients (a block with `connect`) against servers. Every error found is
 //! collected, in statement order.
 
@@ -17,9 +17,11 @@ pub(crate) enum Kind {
     Udp,
     /// A `tcp` block.
     Tcp,
+    /// A `websocket` block (a server only).
+    WebSocket,
 }
 
-/// Checks the statements of one `udp` or `tcp` block; `None` after reporting its errors.
+/// Checks the statements of one `udp`, `tcp` or `websocket` block; `None` after reporting its errors.
 pub(crate) fn check(
     ast: &Ast<'_>,
     kind: Kind,
@@ -60,6 +62,13 @@ pub(crate) fn check(
                 bracketed,
                 port,
             } => {
+                if kind == Kind::WebSocket {
+                    cx.error(
+                        Diagnostic::new(*span, "a websocket block is a server only")
+                            .with_note("browsers connect to it; leave out 'connect'"),
+                    );
+                    continue;
+                }
                 if let Some(first) = connect_at {
                     let line = super::Position::of(ast.src, first.start).line;
                     cx.error(
@@ -107,6 +116,7 @@ pub(crate) fn check(
     let block = match kind {
         Kind::Udp => "udp",
         Kind::Tcp => "tcp",
+        Kind::WebSocket => "websocket",
     };
     if let Some((remote, _)) = &connect {
         if kind == Kind::Tcp
@@ -171,6 +181,13 @@ pub(crate) fn check(
             address,
             max_bitrate,
             connect,
+            peers,
+            signing,
+        }),
+        Kind::WebSocket => Interface::WebSocket(WebSocketInterface {
+            port: port.map_or(WebSocketInterface::DEFAULT_PORT, |(p, _)| p),
+            address,
+            max_bitrate,
             peers,
             signing,
         }),

@@ -102,6 +102,9 @@ struct Runtime {
     notifier: Option<Notifier>,
     /// When the watchdog is fed next (when systemd asked for one).
     next_watchdog: Option<Timestamp>,
+    /// Slots whose driver had a deadline when it joined (see [`Driver::deadline`]):
+    /// looked at once a second until it has none.
+    expiring: Vec<usize>,
 }
 
 impl Runtime {
@@ -281,6 +284,9 @@ impl Runtime {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
         }
         self.slot_of[interface.0] = key;
+        if self.slots[key].driver.deadline().is_some() {
+            self.expiring.push(key);
+        }
         self.watch(key);
         if ready {
             self.mark_readable(key);
@@ -378,7 +384,10 @@ impl Runtime {
                 Notice::LinkAdded { .. } | Notice::LinkRemoved { .. } => {}
                 Notice::Open(interface) => self.open(interface, now),
                 Notice::Closed(interface) => self.remove(interface),
-                Notice::PublishStats => self.publish_stats(now),
+                Notice::PublishStats => {
+                    self.publish_stats(now);
+                    self.expire(now);
+                }
                 Notice::SaveSigningState(state) => {
                     if let Some(file) = &self.state_file {
                         file.save(&state);
@@ -415,6 +424,29 @@ impl Runtime {
             }
             Err(e) => self.engine.stream_open_failed(interface, now, &e),
         }
+    }
+
+    /// Gives the drivers whose deadline has passed their [`Driver::expire`] (once a
+    /// second, with the core's tick); those left without a deadline stop being looked at.
+    fn expire(&mut self, now: Timestamp) {
+        let mut keys = std::mem::take(&mut self.expiring);
+        keys.retain(|&key| {
+            let Some(slot) = self.slots.get_mut(key) else {
+                return false;
+            };
+            match slot.driver.deadline() {
+                Some(due) if now >= due => {
+                    if slot.driver.expire(&mut self.engine, now) == Progress::Lost {
+                        self.close(key);
+                        return false;
+                    }
+                    true
+                }
+                Some(_) => true,
+                None => false,
+            }
+        });
+        self.expiring.extend(keys);
     }
 
     /// Feeds systemd's watchdog when it is due (at half its interval): from the loop's
@@ -724,6 +756,7 @@ fn start(
         source: source.map(str::to_string),
         notifier,
         next_watchdog,
+        expiring: Vec::new(),
     };
     for driver in drivers {
         rt.add(driver, false);

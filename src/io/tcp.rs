@@ -27,7 +27,7 @@ const ACCEPTS_PER_TURN: usize = 64;
 const KEEPALIVE: Duration = Duration::from_secs(10);
 
 /// Sets the options every connection has.
-fn tune(stream: &TcpStream) -> io::Result<()> {
+pub(super) fn tune(stream: &TcpStream) -> io::Result<()> {
     stream.set_nonblocking(true)?;
     stream.set_nodelay(true)?;
     let keepalive = TcpKeepalive::new()
@@ -43,18 +43,42 @@ pub fn label(config: &TcpInterface) -> String {
     config.label()
 }
 
-/// A server's listening socket.
+/// Makes the driver of a connection the core accepted as interface `id`.
+pub(super) type Accepted = fn(id: InterfaceId, stream: TcpStream, now: Timestamp) -> Box<dyn Driver>;
+
+/// A server's listening socket (of a `tcp` block, or of a `websocket` block: what
+/// `accepted` makes of each connection tells them apart).
 pub struct TcpListenerDriver {
     interface: InterfaceId,
     listener: TcpListener,
     accepted: Vec<Box<dyn Driver>>,
+    make: Accepted,
 }
 
 impl TcpListenerDriver {
     /// Listens for `config` (a port in use stops the start, naming the block).
     pub fn bind(config: &TcpInterface, interface: InterfaceId) -> io::Result<Self> {
         let local = SocketAddr::new(config.local_address(), config.port);
-        let named = |e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", label(config)));
+        Self::listen(local, &label(config), interface, |id, stream, _| {
+            Box::new(TcpStreamDriver {
+                interface: id,
+                stream: Some(stream),
+                client: None,
+                connecting: false,
+                io: StreamIo::default(),
+            })
+        })
+    }
+
+    /// Listens on `local` (errors name `label`); `make` gives each connection the core
+    /// accepts its driver.
+    pub(super) fn listen(
+        local: SocketAddr,
+        label: &str,
+        interface: InterfaceId,
+        make: Accepted,
+    ) -> io::Result<Self> {
+        let named = |e: io::Error| io::Error::new(e.kind(), format!("{label}: {e}"));
         let socket = Socket::new(
             Domain::for_address(local),
             Type::STREAM,
@@ -72,6 +96,7 @@ impl TcpListenerDriver {
             interface,
             listener: socket.into(),
             accepted: Vec::new(),
+            make,
         })
     }
 }
@@ -102,13 +127,7 @@ impl Driver for TcpListenerDriver {
                     }
                     // Refused by the limits: dropping the stream closes it.
                     if let Some(id) = engine.accept(self.interface, peer, now) {
-                        self.accepted.push(Box::new(TcpStreamDriver {
-                            interface: id,
-                            stream: Some(stream),
-                            client: None,
-                            connecting: false,
-                            io: StreamIo::default(),
-                        }));
+                        self.accepted.push((self.make)(id, stream, now));
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
