@@ -45,10 +45,9 @@ impl Claim {
     pub(crate) fn clashes(&self, other: &Claim) -> bool {
         match (self, other) {
             (Claim::Udp(a), Claim::Udp(b))
-            | (
-                Claim::Tcp(a) | Claim::WebSocket(a),
-                Claim::Tcp(b) | Claim::WebSocket(b),
-            ) => a.port() == b.port() && overlap(a.ip(), b.ip()),
+            | (Claim::Tcp(a) | Claim::WebSocket(a), Claim::Tcp(b) | Claim::WebSocket(b)) => {
+                a.port() == b.port() && overlap(a.ip(), b.ip())
+            }
             (Claim::Device(a), Claim::Device(b)) => a == b,
             _ => false,
         }

@@ -105,6 +105,9 @@ struct Runtime {
     /// Slots whose driver had a deadline when it joined (see [`Driver::deadline`]):
     /// looked at once a second until it has none.
     expiring: Vec<usize>,
+    /// When [`Runtime::expiring`] is looked at next (the core's once-a-second tick
+    /// wakes the loop by then).
+    next_expiry: Timestamp,
 }
 
 impl Runtime {
@@ -384,10 +387,7 @@ impl Runtime {
                 Notice::LinkAdded { .. } | Notice::LinkRemoved { .. } => {}
                 Notice::Open(interface) => self.open(interface, now),
                 Notice::Closed(interface) => self.remove(interface),
-                Notice::PublishStats => {
-                    self.publish_stats(now);
-                    self.expire(now);
-                }
+                Notice::PublishStats => self.publish_stats(now),
                 Notice::SaveSigningState(state) => {
                     if let Some(file) = &self.state_file {
                         file.save(&state);
@@ -427,8 +427,12 @@ impl Runtime {
     }
 
     /// Gives the drivers whose deadline has passed their [`Driver::expire`] (once a
-    /// second, with the core's tick); those left without a deadline stop being looked at.
+    /// second); those left without a deadline stop being looked at.
     fn expire(&mut self, now: Timestamp) {
+        if self.expiring.is_empty() || now < self.next_expiry {
+            return;
+        }
+        self.next_expiry = now + Duration::from_secs(1);
         let mut keys = std::mem::take(&mut self.expiring);
         keys.retain(|&key| {
             let Some(slot) = self.slots.get_mut(key) else {
@@ -564,6 +568,7 @@ impl Runtime {
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
+            self.expire(now);
             self.handle_notices(now);
             self.record();
             self.flush_ready(now);
@@ -757,6 +762,7 @@ fn start(
         notifier,
         next_watchdog,
         expiring: Vec::new(),
+        next_expiry: Timestamp::ZERO,
     };
     for driver in drivers {
         rt.add(driver, false);

@@ -44,7 +44,8 @@ pub fn label(config: &TcpInterface) -> String {
 }
 
 /// Makes the driver of a connection the core accepted as interface `id`.
-pub(super) type Accepted = fn(id: InterfaceId, stream: TcpStream, now: Timestamp) -> Box<dyn Driver>;
+pub(super) type Accepted =
+    fn(id: InterfaceId, stream: TcpStream, now: Timestamp) -> Box<dyn Driver>;
 
 /// A server's listening socket (of a `tcp` block, or of a `websocket` block: what
 /// `accepted` makes of each connection tells them apart).

@@ -43,7 +43,10 @@ const READS_PER_TURN: usize = 16;
 const FRAMES_PER_WRITE: usize = 16;
 
 /// A `websocket` server's listening socket.
-pub fn listener(config: &WebSocketInterface, interface: InterfaceId) -> io::Result<TcpListenerDriver> {
+pub fn listener(
+    config: &WebSocketInterface,
+    interface: InterfaceId,
+) -> io::Result<TcpListenerDriver> {
     let local = SocketAddr::new(config.local_address(), config.port);
     TcpListenerDriver::listen(local, &config.label(), interface, |id, stream, now| {
         Box::new(WebSocketDriver::accepted(id, stream, now))
@@ -126,9 +129,11 @@ impl WebSocketDriver {
                 self.state = State::Handshake(mid);
                 Progress::Done
             }
-            Err(HandshakeError::Failure(e)) => {
-                self.lose(engine, now, Some(format!("WebSocket handshake failed: {e}")))
-            }
+            Err(HandshakeError::Failure(e)) => self.lose(
+                engine,
+                now,
+                Some(format!("WebSocket handshake failed: {e}")),
+            ),
         }
     }
 

@@ -31,3 +31,4 @@ mod stats_e2e;
 mod stats_page_browser;
 mod tcp_faults_e2e;
 mod transports_e2e;
+mod websocket_e2e;
