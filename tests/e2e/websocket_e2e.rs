@@ -138,6 +138,21 @@ fn frames_travel_both_ways_as_binary_messages() {
     ws.send(Message::binary(head.to_vec())).expect("send");
     ws.send(Message::binary(tail.to_vec())).expect("send");
     assert_eq!(udp_frames(&v, 1, 5 * SECOND), [split]);
+    // A ping is answered.
+    ws.send(Message::Ping(b"are you there".to_vec().into()))
+        .expect("ping");
+    let deadline = Instant::now() + 5 * SECOND;
+    let pong = loop {
+        assert!(Instant::now() < deadline, "no pong within 5 s");
+        match ws.read() {
+            Ok(Message::Pong(p)) => break p.to_vec(),
+            Ok(other) => panic!("{other:?} instead of a pong"),
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+            Err(e) => panic!("{e}"),
+        }
+    };
+    assert_eq!(pong, b"are you there");
     let name = link_name(&ws);
     let c = counters(&mut router);
     let link = c.link(&name).expect("the client's link");
