@@ -317,6 +317,57 @@ fn a_connection_without_a_handshake_is_closed_after_5_s() {
     router.stop();
 }
 
+/// A request that is not a WebSocket upgrade, and an endless request head (garbage with
+/// no blank line), are closed at once (the head after 64 KiB), logged and counted; a
+/// client beside them is still served.
+#[test]
+fn a_bad_handshake_is_closed_at_once() {
+    let s = Scratch::new("ws-bad-handshake");
+    let (mut router, udp, port) = router(&s, "", "");
+    let v = vehicle(&mut router, udp, 1);
+    let to = format!("127.0.0.1:{port}");
+    let mut ws = ws_join(&mut router, port, 255);
+    let mut plain = connect(&to);
+    plain
+        .write_all(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        .expect("write");
+    let mut endless = connect(&to);
+    endless
+        .set_write_timeout(Some(2 * SECOND))
+        .expect("timeout");
+    let garbage = vec![b'x'; 8192];
+    // Writes fail once the router has closed the connection (the kernel's buffers may
+    // take a megabyte or so before that shows).
+    for _ in 0..256 {
+        if endless.write_all(&garbage).is_err() {
+            break;
+        }
+    }
+    for (name, stream) in [("plain", &mut plain), ("endless", &mut endless)] {
+        stream.set_read_timeout(Some(2 * SECOND)).expect("timeout");
+        let mut buf = [0u8; 256];
+        // Whatever comes, the end follows within 2 s.
+        let deadline = Instant::now() + 2 * SECOND;
+        loop {
+            assert!(Instant::now() < deadline, "{name}: still open");
+            match stream.read(&mut buf) {
+                Ok(0) | Err(_) => break,
+                Ok(_) => {}
+            }
+        }
+    }
+    router
+        .err
+        .wait_for("WebSocket handshake failed", 5 * SECOND);
+    v.send(&attitude(1, 1)).expect("send");
+    assert_eq!(messages(&mut ws, 1, 5 * SECOND), [attitude(1, 1)]);
+    let label = format!("websocket 127.0.0.1:{port}");
+    counters_until(&mut router, "two I/O errors", |c| {
+        c.interface(&label).is_some_and(|i| i.io_errors == 2)
+    });
+    router.stop();
+}
+
 /// A client that never reads while the vehicle sends a long stream of large frames: its
 /// queue stays within its bound and the drops are counted, the router's memory hardly
 /// grows, and another client gets every frame.
