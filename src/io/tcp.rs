@@ -27,7 +27,7 @@ const ACCEPTS_PER_TURN: usize = 64;
 const KEEPALIVE: Duration = Duration::from_secs(10);
 
 /// Sets the options every connection has.
-pub(super) fn tune(stream: &TcpStream) -> io::Result<()> {
+fn tune(stream: &TcpStream) -> io::Result<()> {
     stream.set_nonblocking(true)?;
     stream.set_nodelay(true)?;
     let keepalive = TcpKeepalive::new()
