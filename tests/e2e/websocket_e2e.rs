@@ -317,6 +317,30 @@ fn a_connection_without_a_handshake_is_closed_after_5_s() {
     router.stop();
 }
 
+/// `mavtables udp-server:… ws-server:…` (no file) routes between a UDP vehicle and a
+/// WebSocket client.
+#[test]
+fn the_ws_server_endpoint_routes_without_a_file() {
+    let (udp, port) = (free_udp_port(), free_tcp_port());
+    let child = std::process::Command::new(common::router::BIN)
+        .arg(format!("udp-server:127.0.0.1:{udp}"))
+        .arg(format!("ws-server:127.0.0.1:{port}"))
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn mavtables");
+    let _guard = common::router::Guard(Some(child));
+    let mut ws = ws_client(port);
+    let v = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    v.connect(format!("127.0.0.1:{udp}")).expect("connect");
+    // The vehicle is known once its heartbeat reached the client.
+    v.send(&heartbeat(1)).expect("send");
+    assert_eq!(messages(&mut ws, 1, 5 * SECOND), [heartbeat(1)]);
+    ws.send(Message::binary(attitude(255, 1))).expect("send");
+    assert_eq!(udp_frames(&v, 1, 5 * SECOND), [attitude(255, 1)]);
+}
+
 /// A request that is not a WebSocket upgrade, and an endless request head (garbage with
 /// no blank line), are closed at once (the head after 64 KiB), logged and counted; a
 /// client beside them is still served.
