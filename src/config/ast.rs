@@ -167,6 +167,8 @@ pub enum SocketSetting {
     AllowUnsigned(YesNo),
     /// `group NAME;`: the interface is one path to a vehicle with the group's others.
     Group(Span),
+    /// `origin ORIGIN;` (websocket blocks): a web page origin whose pages may connect.
+    Origin(Span),
 }
 
 /// A statement of a `heartbeat` block; each span covers the value.

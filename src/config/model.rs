@@ -317,6 +317,10 @@ pub struct WebSocketInterface {
     pub peers: PeerLimits,
     /// MAVLink 2 signing, when the block has a `signing_key`.
     pub signing: Option<InterfaceSigning>,
+    /// `origin` statements, in lower case: a browser's request whose `Origin` header
+    /// names none of them is refused. Empty: any origin. Requests without the header
+    /// (not made by a web page) are taken either way.
+    pub origins: Vec<String>,
 }
 
 impl WebSocketInterface {
@@ -345,6 +349,7 @@ impl Default for WebSocketInterface {
             max_bitrate: None,
             peers: PeerLimits::default(),
             signing: None,
+            origins: Vec::new(),
         }
     }
 }

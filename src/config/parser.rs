@@ -37,6 +37,7 @@ const UDP_STATEMENTS: &[&str] = &[
     "signing_key",
     "allow_unsigned",
     "group",
+    "origin",
 ];
 const SERIAL_STATEMENTS: &[&str] = &[
     "device",
@@ -338,6 +339,12 @@ impl<'a> Parser<'a> {
             "group" => {
                 self.c.word();
                 SocketSetting::Group(self.group_name()?)
+            }
+            "origin" => {
+                self.c.word();
+                SocketSetting::Origin(
+                    self.path("expected a web origin, e.g. http://localhost:8080")?,
+                )
             }
             _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
         };

@@ -159,6 +159,7 @@ impl Printer<'_, '_> {
                 SocketSetting::SigningKey(v) => ("signing_key", *v),
                 SocketSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
                 SocketSetting::Group(v) => ("group", *v),
+                SocketSetting::Origin(v) => ("origin", *v),
             };
             self.node(1, span, name, Some(span));
         }

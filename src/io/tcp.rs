@@ -44,8 +44,7 @@ pub fn label(config: &TcpInterface) -> String {
 }
 
 /// Makes the driver of a connection the core accepted as interface `id`.
-pub(super) type Accepted =
-    fn(id: InterfaceId, stream: TcpStream, now: Timestamp) -> Box<dyn Driver>;
+pub(super) type Accepted = Box<dyn Fn(InterfaceId, TcpStream, Timestamp) -> Box<dyn Driver>>;
 
 /// A server's listening socket (of a `tcp` block, or of a `websocket` block: what
 /// `accepted` makes of each connection tells them apart).
@@ -60,7 +59,7 @@ impl TcpListenerDriver {
     /// Listens for `config` (a port in use stops the start, naming the block).
     pub fn bind(config: &TcpInterface, interface: InterfaceId) -> io::Result<Self> {
         let local = SocketAddr::new(config.local_address(), config.port);
-        Self::listen(local, &label(config), interface, |id, stream, _| {
+        let make: Accepted = Box::new(|id, stream, _| {
             Box::new(TcpStreamDriver {
                 interface: id,
                 stream: Some(stream),
@@ -68,7 +67,8 @@ impl TcpListenerDriver {
                 connecting: false,
                 io: StreamIo::default(),
             })
-        })
+        });
+        Self::listen(local, &label(config), interface, make)
     }
 
     /// Listens on `local` (errors name `label`); `make` gives each connection the core

@@ -8,7 +8,8 @@
 //! - Text messages are not MAVLink: their bytes are counted as junk and dropped; the
 //!   connection stays.
 //! - A message (or frame) over [`MAX_MESSAGE`] bytes, or a handshake not done within
-//!   [`HANDSHAKE_LIMIT`], closes the connection (logged, counted as an I/O error).
+//!   [`HANDSHAKE_LIMIT`], closes the connection (logged, counted as an I/O error); so
+//!   does a browser's request from an origin the block does not name (answered 403).
 //! - Output is taken from the core a few frames at a time, only once what was taken
 //!   before has been written: a client that never reads is held back by the core's
 //!   per-link queue, as a TCP client is; the driver never buffers more.
@@ -21,9 +22,11 @@ use std::os::fd::{AsRawFd, RawFd};
 use std::time::Duration;
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 use tungstenite::error::{Error as WsError, ProtocolError};
-use tungstenite::handshake::server::{NoCallback, ServerHandshake};
+use tungstenite::handshake::server::{Callback, ErrorResponse, Request, Response, ServerHandshake};
 use tungstenite::handshake::{HandshakeError, MidHandshake};
+use tungstenite::http::StatusCode;
 use tungstenite::protocol::WebSocketConfig;
 use tungstenite::{Message, WebSocket};
 
@@ -48,9 +51,40 @@ pub fn listener(
     interface: InterfaceId,
 ) -> io::Result<TcpListenerDriver> {
     let local = SocketAddr::new(config.local_address(), config.port);
-    TcpListenerDriver::listen(local, &config.label(), interface, |id, stream, now| {
-        Box::new(WebSocketDriver::accepted(id, stream, now))
-    })
+    let origins: Arc<[String]> = config.origins.clone().into();
+    TcpListenerDriver::listen(
+        local,
+        &config.label(),
+        interface,
+        Box::new(move |id, stream, now| {
+            let check = OriginCheck(Arc::clone(&origins));
+            Box::new(WebSocketDriver::accepted(id, stream, now, check))
+        }),
+    )
+}
+
+/// The block's `origin` statements, checked against a request's `Origin` header.
+struct OriginCheck(Arc<[String]>);
+
+impl Callback for OriginCheck {
+    /// Refuses (403) a request whose `Origin` is not one of the block's; takes any
+    /// request when the block names none, and requests without the header (not made
+    /// by a web page).
+    fn on_request(self, request: &Request, response: Response) -> Result<Response, ErrorResponse> {
+        let Some(origin) = request.headers().get("origin") else {
+            return Ok(response);
+        };
+        let allowed = self.0.is_empty()
+            || origin
+                .to_str()
+                .is_ok_and(|o| self.0.iter().any(|a| a.eq_ignore_ascii_case(o)));
+        if allowed {
+            return Ok(response);
+        }
+        let mut refusal = ErrorResponse::new(Some("origin not allowed\n".into()));
+        *refusal.status_mut() = StatusCode::FORBIDDEN;
+        Err(refusal)
+    }
 }
 
 fn ws_config() -> WebSocketConfig {
@@ -67,9 +101,9 @@ fn ws_config() -> WebSocketConfig {
 /// Where a connection is.
 enum State {
     /// Accepted; the handshake starts at the first `receive`.
-    Accepted(TcpStream),
+    Accepted(TcpStream, OriginCheck),
     /// The HTTP upgrade is under way.
-    Handshake(MidHandshake<ServerHandshake<TcpStream, NoCallback>>),
+    Handshake(MidHandshake<ServerHandshake<TcpStream, OriginCheck>>),
     /// Messages flow.
     Open(WebSocket<TcpStream>),
     /// Closed, or its handshake failed.
@@ -93,11 +127,16 @@ pub struct WebSocketDriver {
 
 impl WebSocketDriver {
     /// A connection accepted at `now` as the core's interface `id`: its handshake starts.
-    fn accepted(interface: InterfaceId, stream: TcpStream, now: Timestamp) -> Self {
+    fn accepted(
+        interface: InterfaceId,
+        stream: TcpStream,
+        now: Timestamp,
+        check: OriginCheck,
+    ) -> Self {
         WebSocketDriver {
             interface,
             fd: stream.as_raw_fd(),
-            state: State::Accepted(stream),
+            state: State::Accepted(stream, check),
             deadline: Some(now + HANDSHAKE_LIMIT),
             unflushed: false,
             failed: None,
@@ -109,7 +148,9 @@ impl WebSocketDriver {
     /// first messages read), `Lost` if it failed.
     fn handshake(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         let result = match std::mem::replace(&mut self.state, State::Gone) {
-            State::Accepted(stream) => tungstenite::accept_with_config(stream, Some(ws_config())),
+            State::Accepted(stream, check) => {
+                tungstenite::accept_hdr_with_config(stream, check, Some(ws_config()))
+            }
             State::Handshake(mid) => mid.handshake(),
             other => {
                 self.state = other;
@@ -128,6 +169,13 @@ impl WebSocketDriver {
             Err(HandshakeError::Interrupted(mid)) => {
                 self.state = State::Handshake(mid);
                 Progress::Done
+            }
+            Err(HandshakeError::Failure(WsError::Http(r)))
+                if r.status() == StatusCode::FORBIDDEN =>
+            {
+                let why =
+                    "WebSocket handshake refused: the page's origin is not one the block allows";
+                self.lose(engine, now, Some(why.to_string()))
             }
             Err(HandshakeError::Failure(e)) => self.lose(
                 engine,
@@ -219,7 +267,7 @@ impl Driver for WebSocketDriver {
 
     fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         match self.state {
-            State::Accepted(_) | State::Handshake(_) => self.handshake(engine, now),
+            State::Accepted(..) | State::Handshake(_) => self.handshake(engine, now),
             State::Open(_) => self.read(engine, now),
             State::Gone => Progress::Done,
         }
@@ -235,7 +283,7 @@ impl Driver for WebSocketDriver {
                 State::Open(ws) => ws,
                 // Frames wait in the core until the handshake is done (`receive`
                 // drives it, and tells the core when it is).
-                State::Accepted(_) | State::Handshake(_) | State::Gone => return Progress::Done,
+                State::Accepted(..) | State::Handshake(_) | State::Gone => return Progress::Done,
             };
             if self.unflushed {
                 match ws.flush() {
@@ -285,7 +333,7 @@ impl Driver for WebSocketDriver {
     }
 
     fn expire(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
-        if !matches!(self.state, State::Accepted(_) | State::Handshake(_)) {
+        if !matches!(self.state, State::Accepted(..) | State::Handshake(_)) {
             self.deadline = None;
             return Progress::Done;
         }

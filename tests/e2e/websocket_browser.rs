@@ -2,7 +2,8 @@
 //! a small page (served by a fixture server on 127.0.0.1) whose script connects to the
 //! router, decodes the vehicle's HEARTBEAT and ATTITUDE from binary messages, and sends
 //! a COMMAND_LONG it encodes itself (checksum and all), which the router routes to the
-//! vehicle, a UDP socket of our own. The browser runs in real time; the outcome is seen
+//! vehicle, a UDP socket of our own. The block names the page's origin (`origin`), so
+//! the browser's `Origin` header is checked too. The browser runs in real time; the outcome is seen
 //! on the vehicle's socket: the command, carrying in its parameters what the page
 //! decoded.
 
@@ -121,9 +122,16 @@ fn f32_at(payload: &[u8], at: usize) -> f32 {
 fn a_browser_page_commands_a_vehicle_over_websocket() {
     let s = Scratch::new("ws-browser");
     let (udp, port) = (free_udp_port(), free_tcp_port());
+    let page = PAGE.replace("__PORT__", &port.to_string());
+    let site = HttpFixture::start(move |path, _| match path {
+        "/" => Answer::Http(200, "text/html; charset=utf-8", page.clone().into_bytes()),
+        _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
+    });
+    // Only the test's site may connect: the browser's Origin header must match it.
     let config = format!(
         "udp {{ port {udp}; address 127.0.0.1; }}\n\
-         websocket {{ port {port}; address 127.0.0.1; }}\n{ACCEPT_ALL}"
+         websocket {{ port {port}; address 127.0.0.1; origin {}; }}\n{ACCEPT_ALL}",
+        site.url()
     );
     let mut router = Router::start(&s, &config, 1);
     let vehicle = UdpSocket::bind("127.0.0.1:0").expect("bind");
@@ -135,11 +143,6 @@ fn a_browser_page_commands_a_vehicle_over_websocket() {
         .expect("timeout");
     vehicle.send(&heartbeat(1, 0)).expect("send");
     router.wait_for("new component 1.1 on 127.0.0.1:");
-    let page = PAGE.replace("__PORT__", &port.to_string());
-    let site = HttpFixture::start(move |path, _| match path {
-        "/" => Answer::Http(200, "text/html; charset=utf-8", page.clone().into_bytes()),
-        _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
-    });
     let (roll, yaw) = (0.25f32, -1.5f32);
     let _browser = browser::open(&s, &format!("{}/", site.url()));
     // The vehicle's telemetry, ten times a second, until the command comes (at most 60 s:

@@ -317,6 +317,60 @@ fn a_connection_without_a_handshake_is_closed_after_5_s() {
     router.stop();
 }
 
+/// A client handshaking with `origin` as its `Origin` header (None: without one).
+fn ws_client_from(port: u16, origin: Option<&str>) -> tungstenite::Result<Client> {
+    use tungstenite::client::IntoClientRequest;
+    let stream = connect(&format!("127.0.0.1:{port}"));
+    stream
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let mut request = format!("ws://127.0.0.1:{port}/")
+        .into_client_request()
+        .expect("request");
+    if let Some(origin) = origin {
+        request
+            .headers_mut()
+            .insert("Origin", origin.parse().expect("header"));
+    }
+    tungstenite::client(request, stream)
+        .map(|(ws, _)| ws)
+        .map_err(|e| match e {
+            tungstenite::HandshakeError::Failure(e) => e,
+            tungstenite::HandshakeError::Interrupted(_) => panic!("blocking client interrupted"),
+        })
+}
+
+/// With `origin` statements, a browser's request from another origin is refused with
+/// 403 (logged, counted); a listed origin (in any case) and a request without an
+/// `Origin` header (not a web page) are taken.
+#[test]
+fn origin_statements_refuse_other_sites_pages() {
+    let s = Scratch::new("ws-origin");
+    let (mut router, udp, port) = router(
+        &s,
+        " origin http://127.0.0.1:8080; origin https://ground.example;",
+        "",
+    );
+    let v = vehicle(&mut router, udp, 1);
+    match ws_client_from(port, Some("https://evil.example")) {
+        Err(tungstenite::Error::Http(r)) => assert_eq!(r.status(), 403),
+        other => panic!("{:?} instead of 403", other.map(|_| ())),
+    }
+    router
+        .err
+        .wait_for("origin is not one the block allows", 5 * SECOND);
+    let mut listed = ws_client_from(port, Some("HTTPS://ground.example")).expect("listed");
+    let mut tool = ws_client_from(port, None).expect("no origin");
+    v.send(&attitude(1, 1)).expect("send");
+    assert_eq!(messages(&mut listed, 1, 5 * SECOND), [attitude(1, 1)]);
+    assert_eq!(messages(&mut tool, 1, 5 * SECOND), [attitude(1, 1)]);
+    let label = format!("websocket 127.0.0.1:{port}");
+    counters_until(&mut router, "one I/O error", |c| {
+        c.interface(&label).is_some_and(|i| i.io_errors == 1)
+    });
+    router.stop();
+}
+
 /// `mavtables udp-server:… ws-server:…` (no file) routes between a UDP vehicle and a
 /// WebSocket client.
 #[test]

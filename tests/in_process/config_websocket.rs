@@ -47,6 +47,7 @@ fn websocket_blocks_and_their_defaults() {
                 allow: vec![],
             },
             signing: None,
+            origins: vec![],
         })
     );
     let Interface::WebSocket(w) = one(
@@ -141,4 +142,58 @@ fn the_ws_server_endpoint_stands_for_a_websocket_block() {
     assert!(matches!(e.interface, Interface::WebSocket(w) if w.address == Some(ip("::1"))));
     let err = endpoints::parse("ws-server:localhost:8770").expect_err("a host name");
     assert!(err.contains("write ws-server:ADDRESS:PORT"), "{err}");
+}
+
+#[test]
+fn origin_statements_name_the_pages_that_may_connect() {
+    let Interface::WebSocket(w) = one(
+        "websocket {\n    origin http://localhost:8080;\n    origin HTTPS://Example.org;\n    origin http://[::1]:3000;\n}",
+    ) else {
+        panic!("websocket")
+    };
+    assert_eq!(
+        w.origins,
+        [
+            "http://localhost:8080",
+            "https://example.org",
+            "http://[::1]:3000"
+        ]
+    );
+    assert_eq!(
+        tree("websocket { origin http://localhost:8080; }"),
+        ":001:  websocket\n:001:  |  origin http://localhost:8080\n"
+    );
+    for (src, want) in [
+        (
+            "tcp { origin http://a; }",
+            "f:1:14: 'origin' applies to websocket blocks only",
+        ),
+        (
+            "websocket { origin localhost:8080; }",
+            "f:1:20: expected an origin starting with http:// or https://",
+        ),
+        (
+            "websocket { origin http://localhost:8080/app; }",
+            "f:1:41: an origin has no path, query or user",
+        ),
+        (
+            "websocket { origin http://local host; }",
+            "f:1:33: expected end of statement ';' character",
+        ),
+        (
+            "websocket { origin http://:80; }",
+            "f:1:27: expected a host name or address",
+        ),
+        (
+            "websocket { origin http://a:0; }",
+            "f:1:29: expected a port number (1 - 65535)",
+        ),
+        (
+            "websocket { origin ; }",
+            "f:1:20: expected a web origin, e.g. http://localhost:8080",
+        ),
+    ] {
+        let e = all(src);
+        assert!(e.starts_with(want), "{src}: {e}");
+    }
 }
