@@ -66,12 +66,7 @@ where
 
 fuzz_target!(|input: &[u8]| {
     let (sizes, data) = input.split_at(input.len().min(4));
-    let capture = Capture::new(ShortReads {
-        data,
-        sizes,
-        turn: 0,
-    })
-    .expect("in memory");
+    let capture = Capture::new(ShortReads { data, sizes, turn: 0 }).expect("in memory");
     let format = capture.format();
     let mut got = Collect::default();
     let end = capture.read(&mut got).expect("in memory");

@@ -29,10 +29,7 @@ fn run(checks: Checks, chunk: usize, data: &[u8]) {
         });
     }
     let held = parser.pending_len() as u64;
-    assert_eq!(
-        in_frames + parser.stats().junk_bytes + held,
-        parser.position()
-    );
+    assert_eq!(in_frames + parser.stats().junk_bytes + held, parser.position());
     parser.finish_frames(|f| {
         in_frames += f.as_bytes().len() as u64;
         longer += u64::from(f.is_longer_than_known());
@@ -41,10 +38,7 @@ fn run(checks: Checks, chunk: usize, data: &[u8]) {
     assert_eq!(in_frames + parser.stats().junk_bytes, parser.position());
     assert_eq!(parser.stats().longer_than_known, longer);
     if checks.known_length {
-        assert_eq!(
-            longer, 0,
-            "strict checks hand out no longer-than-known frame"
-        );
+        assert_eq!(longer, 0, "strict checks hand out no longer-than-known frame");
     }
 }
 

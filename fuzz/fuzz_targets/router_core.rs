@@ -56,10 +56,7 @@ fuzz_target!(|data: &[u8]| {
         rest = tail;
         let k = usize::from((op >> 2) & 3);
         if op & 3 != 3 {
-            let n = rest
-                .first()
-                .map_or(0, |&n| usize::from(n))
-                .min(rest.len().saturating_sub(1));
+            let n = rest.first().map_or(0, |&n| usize::from(n)).min(rest.len().saturating_sub(1));
             let chunk = rest.get(1..1 + n).unwrap_or(&[]);
             rest = rest.get(1 + n..).unwrap_or(&[]);
             let id = *links[k].get_or_insert_with(|| router.add_udp_link(names[k], now));

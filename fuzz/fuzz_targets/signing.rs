@@ -8,11 +8,11 @@
 use std::collections::HashMap;
 
 use libfuzzer_sys::fuzz_target;
-use mavtables::signing::SigningKey;
 use mavtables::signing::sign::sign;
 use mavtables::signing::state::SavedState;
 use mavtables::signing::streams::{StreamId, StreamTable};
 use mavtables::signing::verify::{Admission, Check, WINDOW};
+use mavtables::signing::SigningKey;
 use mavtables::wire::signing::verify;
 use mavtables::wire::{Frame, Parser};
 
@@ -84,10 +84,7 @@ fuzz_target!(|data: &[u8]| {
         };
         admit(&check, &frame, &mut streams, &mut last);
         // The same frame signed by the router, with a timestamp taken from its bytes.
-        let ts = bytes
-            .iter()
-            .fold(0u64, |a, &b| a.rotate_left(5) ^ u64::from(b))
-            & 0xffff_ffff;
+        let ts = bytes.iter().fold(0u64, |a, &b| a.rotate_left(5) ^ u64::from(b)) & 0xffff_ffff;
         if let Some(signed) = sign(bytes, &key, bytes[bytes.len() / 2], ts) {
             let f = Frame::parse_exact(&signed).expect("the router's signed frame is valid");
             assert!(verify(&f, &KEY));
