@@ -16,13 +16,13 @@
 //!
 //! Framing, masking, ping/pong and the closing handshake are `tungstenite`'s.
 
+use std::collections::VecDeque;
 use std::io;
 use std::net::{SocketAddr, TcpStream};
 use std::os::fd::{AsRawFd, RawFd};
+use std::sync::Arc;
 use std::time::Duration;
 
-use std::collections::VecDeque;
-use std::sync::Arc;
 use tungstenite::error::{Error as WsError, ProtocolError};
 use tungstenite::handshake::server::{Callback, ErrorResponse, Request, Response, ServerHandshake};
 use tungstenite::handshake::{HandshakeError, MidHandshake};
