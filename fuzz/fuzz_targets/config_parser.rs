@@ -30,9 +30,20 @@ fuzz_target!(|data: &[u8]| {
                 if let Some(signing) = iface.signing() {
                     assert!(!signing.key_file.is_empty());
                 }
+                if let config::Interface::WebSocket(w) = iface {
+                    for o in &w.origins {
+                        // Lower case, a scheme, a host, no path.
+                        assert_eq!(*o, o.to_ascii_lowercase());
+                        let rest = o
+                            .strip_prefix("http://")
+                            .or_else(|| o.strip_prefix("https://"));
+                        assert!(rest.is_some_and(|r| !r.is_empty() && !r.contains(['/', '?', '#', '@'])));
+                    }
+                }
                 let (connect, peers) = match iface {
                     config::Interface::Udp(u) => (&u.connect, &u.peers),
                     config::Interface::Tcp(t) => (&t.connect, &t.peers),
+                    config::Interface::WebSocket(w) => (&None, &w.peers),
                     config::Interface::Serial(_) => continue,
                 };
                 assert!((1..=65535).contains(&peers.max_peers));

@@ -5,7 +5,10 @@
 
 use crate::config::claims::Claim;
 use crate::config::net::{self, TextError};
-use crate::config::{Config, Host, Interface, Remote, SerialInterface, TcpInterface, UdpInterface};
+use crate::config::{
+    Config, Host, Interface, Remote, SerialInterface, TcpInterface, UdpInterface,
+    WebSocketInterface,
+};
 use std::net::IpAddr;
 
 /// The endpoint kinds, each with its form and an example (as `--help` lists them).
@@ -15,6 +18,7 @@ pub const KINDS: &[(&str, &str, &str)] = &[
     ("udp-client", "HOST:PORT", "127.0.0.1:14550"),
     ("tcp-server", "ADDRESS:PORT", "0.0.0.0:5760"),
     ("tcp-client", "HOST:PORT", "localhost:5760"),
+    ("ws-server", "ADDRESS:PORT", "127.0.0.1:8765"),
 ];
 
 /// One endpoint argument and the interface it stands for.
@@ -57,6 +61,13 @@ pub fn parse(arg: &str) -> Result<Option<Endpoint>, String> {
                 port,
                 address: Some(address),
                 ..TcpInterface::default()
+            })
+        }),
+        "ws-server" => server(value).map(|(address, port)| {
+            Interface::WebSocket(WebSocketInterface {
+                port,
+                address: Some(address),
+                ..WebSocketInterface::default()
             })
         }),
         _ => client(value).map(|remote| {

@@ -46,6 +46,13 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<SocketSetting>,
     },
+    /// `websocket { ... }`: a server for browsers; the statements of `tcp` but `connect`.
+    WebSocket {
+        /// The `websocket` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<SocketSetting>,
+    },
     /// `serial { ... }`
     Serial {
         /// The `serial` keyword.
@@ -168,6 +175,8 @@ pub enum SocketSetting {
     AllowUnsigned(YesNo),
     /// `group NAME;`: the interface is one path to a vehicle with the group's others.
     Group(Span),
+    /// `origin ORIGIN;` (websocket blocks): a web page origin whose pages may connect.
+    Origin(Span),
 }
 
 /// A statement of a `heartbeat` block; each span covers the value.

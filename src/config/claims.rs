@@ -13,6 +13,8 @@ pub(crate) enum Claim {
     Udp(SocketAddr),
     /// A TCP listening port on a local address.
     Tcp(SocketAddr),
+    /// A TCP listening port on a local address, of a `websocket` block.
+    WebSocket(SocketAddr),
     /// A serial device, by its path as written.
     Device(String),
 }
@@ -28,6 +30,9 @@ impl Claim {
             Interface::Tcp(t) if t.connect.is_none() && t.port != 0 => {
                 Some(Claim::Tcp(SocketAddr::new(t.local_address(), t.port)))
             }
+            Interface::WebSocket(w) if w.port != 0 => {
+                Some(Claim::WebSocket(SocketAddr::new(w.local_address(), w.port)))
+            }
             Interface::Serial(s) => Some(Claim::Device(s.device.clone())),
             _ => None,
         }
@@ -35,10 +40,12 @@ impl Claim {
 
     /// Whether `self` and `other` cannot both be held: the same device, or sockets of one
     /// protocol on one port whose addresses overlap (equal, or one is every address of its
-    /// family; `::` also covers IPv4, as a dual-stack socket does). UDP and TCP never clash.
+    /// family; `::` also covers IPv4, as a dual-stack socket does). UDP and TCP never clash;
+    /// a `websocket` block listens on TCP.
     pub(crate) fn clashes(&self, other: &Claim) -> bool {
         match (self, other) {
-            (Claim::Udp(a), Claim::Udp(b)) | (Claim::Tcp(a), Claim::Tcp(b)) => {
+            (Claim::Udp(a), Claim::Udp(b))
+            | (Claim::Tcp(a) | Claim::WebSocket(a), Claim::Tcp(b) | Claim::WebSocket(b)) => {
                 a.port() == b.port() && overlap(a.ip(), b.ip())
             }
             (Claim::Device(a), Claim::Device(b)) => a == b,
@@ -46,11 +53,12 @@ impl Claim {
         }
     }
 
-    /// `udp`, `tcp` or `serial`: the kind of block that makes this claim.
+    /// `udp`, `tcp`, `websocket` or `serial`: the kind of block that makes this claim.
     pub(crate) fn kind(&self) -> &'static str {
         match self {
             Claim::Udp(_) => "udp",
             Claim::Tcp(_) => "tcp",
+            Claim::WebSocket(_) => "websocket",
             Claim::Device(_) => "serial",
         }
     }
@@ -67,7 +75,7 @@ impl fmt::Display for Claim {
     /// `0.0.0.0:14550`, `[::]:5760`, or the device path.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Claim::Udp(a) | Claim::Tcp(a) => write!(f, "{a}"),
+            Claim::Udp(a) | Claim::Tcp(a) | Claim::WebSocket(a) => write!(f, "{a}"),
             Claim::Device(d) => f.write_str(d),
         }
     }
@@ -97,6 +105,9 @@ mod tests {
         assert!(!udp("0.0.0.0:1").clashes(&udp("0.0.0.0:2")));
         assert!(tcp("0.0.0.0:5760").clashes(&tcp("0.0.0.0:5760")));
         assert!(!tcp("0.0.0.0:5760").clashes(&udp("0.0.0.0:5760")));
+        let ws = Claim::WebSocket("127.0.0.1:5760".parse().expect("socket address"));
+        assert!(ws.clashes(&tcp("0.0.0.0:5760")));
+        assert!(!ws.clashes(&udp("127.0.0.1:5760")));
         assert!(Claim::Device("/dev/a".into()).clashes(&Claim::Device("/dev/a".into())));
         assert!(!Claim::Device("/dev/a".into()).clashes(&Claim::Device("/dev/b".into())));
         assert_eq!(udp("[::]:14550").to_string(), "[::]:14550");

@@ -61,7 +61,9 @@ fn key_spans(src: &str) -> Vec<Option<Span>> {
     ast.items
         .iter()
         .filter_map(|item| match item {
-            Item::Udp { settings, .. } | Item::Tcp { settings, .. } => {
+            Item::Udp { settings, .. }
+            | Item::Tcp { settings, .. }
+            | Item::WebSocket { settings, .. } => {
                 Some(settings.iter().rev().find_map(|s| match s {
                     SocketSetting::SigningKey(path) => Some(*path),
                     _ => None,

@@ -38,7 +38,7 @@ pub use model::{
     Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
     DefaultAction, Heartbeat, Host, Interface, InterfaceGroup, InterfaceSigning, IpRange,
     PeerLimits, QueueBounds, Recording, Remote, Rule, SIGNING_STATE_FILE, SerialInterface,
-    StatsEndpoint, TcpInterface, UdpInterface,
+    StatsEndpoint, TcpInterface, UdpInterface, WebSocketInterface,
 };
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};

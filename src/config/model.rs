@@ -153,6 +153,8 @@ pub enum Interface {
     Serial(SerialInterface),
     /// A TCP listener or a TCP connection to one peer.
     Tcp(TcpInterface),
+    /// A WebSocket server: every connection a browser makes is a link.
+    WebSocket(WebSocketInterface),
 }
 
 impl Interface {
@@ -162,6 +164,7 @@ impl Interface {
             Interface::Udp(u) => u.signing.as_ref(),
             Interface::Serial(s) => s.signing.as_ref(),
             Interface::Tcp(t) => t.signing.as_ref(),
+            Interface::WebSocket(w) => w.signing.as_ref(),
         }
     }
 }
@@ -299,6 +302,57 @@ impl Default for TcpInterface {
             connect: None,
             peers: PeerLimits::default(),
             signing: None,
+        }
+    }
+}
+
+/// A `websocket { }` block with its defaults filled in: a server where every connection
+/// (a browser's, once its WebSocket handshake is done) is a link of its own.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WebSocketInterface {
+    /// Port to listen on (default 8765).
+    pub port: u16,
+    /// Address to listen on; `None` = every IPv4 address (0.0.0.0).
+    pub address: Option<IpAddr>,
+    /// Transmit limit of each connection in bits per second; `None` means no limit.
+    pub max_bitrate: Option<u64>,
+    /// Which remotes it takes.
+    pub peers: PeerLimits,
+    /// MAVLink 2 signing, when the block has a `signing_key`.
+    pub signing: Option<InterfaceSigning>,
+    /// `origin` statements, in lower case: a browser's request whose `Origin` header
+    /// names none of them is refused. Empty: any origin. Requests without the header
+    /// (not made by a web page) are taken either way.
+    pub origins: Vec<String>,
+}
+
+impl WebSocketInterface {
+    /// The port a `websocket` server listens on unless `port` says otherwise.
+    pub const DEFAULT_PORT: u16 = 8765;
+
+    /// The address to bind: `address`, else every IPv4 address.
+    pub fn local_address(&self) -> IpAddr {
+        local_address(self.address, None)
+    }
+
+    /// How messages and counters name it: `websocket ADDRESS:PORT`.
+    pub(crate) fn label(&self) -> String {
+        format!(
+            "websocket {}",
+            SocketAddr::new(self.local_address(), self.port)
+        )
+    }
+}
+
+impl Default for WebSocketInterface {
+    fn default() -> Self {
+        WebSocketInterface {
+            port: Self::DEFAULT_PORT,
+            address: None,
+            max_bitrate: None,
+            peers: PeerLimits::default(),
+            signing: None,
+            origins: Vec::new(),
         }
     }
 }

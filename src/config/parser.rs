@@ -14,6 +14,7 @@ const TOP_LEVEL: &[&str] = &[
     "default_action",
     "udp",
     "tcp",
+    "websocket",
     "serial",
     "queue",
     "chain",
@@ -37,6 +38,7 @@ const UDP_STATEMENTS: &[&str] = &[
     "signing_key",
     "allow_unsigned",
     "group",
+    "origin",
 ];
 const SERIAL_STATEMENTS: &[&str] = &[
     "device",
@@ -176,6 +178,14 @@ impl<'a> Parser<'a> {
                     settings,
                 })
             }
+            "websocket" => {
+                self.c.word();
+                let settings = self.block(span, Self::socket_setting)?;
+                Ok(Item::WebSocket {
+                    keyword: span,
+                    settings,
+                })
+            }
             "serial" => {
                 self.c.word();
                 let settings = self.block(span, Self::serial_setting)?;
@@ -305,7 +315,7 @@ impl<'a> Parser<'a> {
         }
     }
 
-    /// A statement of a `udp` or `tcp` block.
+    /// A statement of a `udp`, `tcp` or `websocket` block.
     fn socket_setting(&mut self) -> Result<SocketSetting> {
         let (span, word) = match self.c.peek_word() {
             Some(found) => found,
@@ -347,6 +357,12 @@ impl<'a> Parser<'a> {
             "group" => {
                 self.c.word();
                 SocketSetting::Group(self.group_name()?)
+            }
+            "origin" => {
+                self.c.word();
+                SocketSetting::Origin(
+                    self.path("expected a web origin, e.g. http://localhost:8080")?,
+                )
             }
             _ => return Err(unsupported(span, word, UDP_STATEMENTS)),
         };

@@ -64,6 +64,7 @@ impl Printer<'_, '_> {
             } => self.accept_or_reject(*keyword, "default_action", *value, *accept),
             Item::Udp { keyword, settings } => self.socket(*keyword, "udp", settings),
             Item::Tcp { keyword, settings } => self.socket(*keyword, "tcp", settings),
+            Item::WebSocket { keyword, settings } => self.socket(*keyword, "websocket", settings),
             Item::Serial { keyword, settings } => {
                 self.node(0, *keyword, "serial", None);
                 for s in settings {
@@ -157,7 +158,7 @@ impl Printer<'_, '_> {
         self.node(1, value, if accept { "accept" } else { "reject" }, None);
     }
 
-    /// A `udp` or `tcp` block: the block node, then one node per statement with its raw
+    /// A `udp`, `tcp` or `websocket` block: the block node, then one node per statement with its raw
     /// value (`connect [fd00::7]:14550`, `allow 192.168.1.0/24`).
     fn socket(&mut self, keyword: Span, name: &str, settings: &[SocketSetting]) {
         self.node(0, keyword, name, None);
@@ -173,6 +174,7 @@ impl Printer<'_, '_> {
                 SocketSetting::SigningKey(v) => ("signing_key", *v),
                 SocketSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
                 SocketSetting::Group(v) => ("group", *v),
+                SocketSetting::Origin(v) => ("origin", *v),
             };
             self.node(1, span, name, Some(span));
         }

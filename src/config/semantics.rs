@@ -90,9 +90,12 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                     DefaultAction::Reject
                 };
             }
-            Item::Udp { keyword, settings } | Item::Tcp { keyword, settings } => {
+            Item::Udp { keyword, settings }
+            | Item::Tcp { keyword, settings }
+            | Item::WebSocket { keyword, settings } => {
                 let kind = match item {
                     Item::Tcp { .. } => Kind::Tcp,
+                    Item::WebSocket { .. } => Kind::WebSocket,
                     _ => Kind::Udp,
                 };
                 let named: Vec<Span> = (settings.iter())
@@ -360,11 +363,11 @@ impl<'a> Checker<'a, '_> {
                 )
                 .with_note("each device can belong to one serial block only"),
                 _ => {
-                    let kind = claim.kind();
+                    let (kind, other_kind) = (claim.kind(), other.kind());
                     Diagnostic::new(
                         keyword,
                         format!(
-                            "{kind} interface {claim} clashes with the {kind} interface on line {first} ({other})"
+                            "{kind} interface {claim} clashes with the {other_kind} interface on line {first} ({other})"
                         ),
                     )
                     .with_note("two interfaces cannot listen on one port of one address; give this one another port")

@@ -1,4 +1,4 @@
-//! The meaning of a `udp` or `tcp` block: values checked and defaults filled in, and the
+//! The meaning of a `udp`, `tcp` or `websocket` block: values checked and defaults filled in, and the
 //! rules of clients (a block with `connect`) against servers. Every error found is
 //! collected, in statement order.
 
@@ -17,9 +17,11 @@ pub(crate) enum Kind {
     Udp,
     /// A `tcp` block.
     Tcp,
+    /// A `websocket` block (a server only).
+    WebSocket,
 }
 
-/// Checks the statements of one `udp` or `tcp` block; `None` after reporting its errors.
+/// Checks the statements of one `udp`, `tcp` or `websocket` block; `None` after reporting its errors.
 pub(crate) fn check(
     ast: &Ast<'_>,
     kind: Kind,
@@ -41,6 +43,7 @@ pub(crate) fn check(
     let mut first_allow = None;
     let mut key_file = None;
     let mut allow_unsigned = Vec::new();
+    let mut origins = Vec::new();
     for s in settings {
         match s {
             SocketSetting::Port(v) => {
@@ -60,6 +63,13 @@ pub(crate) fn check(
                 bracketed,
                 port,
             } => {
+                if kind == Kind::WebSocket {
+                    cx.error(
+                        Diagnostic::new(*span, "a websocket block is a server only")
+                            .with_note("browsers connect to it; leave out 'connect'"),
+                    );
+                    continue;
+                }
                 if let Some(first) = connect_at {
                     let line = super::Position::of(ast.src, first.start).line;
                     cx.error(
@@ -95,6 +105,17 @@ pub(crate) fn check(
             SocketSetting::SigningKey(v) => key_file = Some(*v),
             SocketSetting::AllowUnsigned(v) => allow_unsigned.push(*v),
             SocketSetting::Group(_) => {} // see `super::paths::group`
+            SocketSetting::Origin(v) => {
+                if kind != Kind::WebSocket {
+                    cx.error(
+                        Diagnostic::new(*v, "'origin' applies to websocket blocks only").with_note(
+                            "web pages connect to a websocket block; other peers send no origin",
+                        ),
+                    );
+                } else if let Some(origin) = cx.located(*v, web_origin(ast.text(*v))) {
+                    origins.push(origin);
+                }
+            }
         }
     }
     let signing = match interface_signing(ast, key_file, &allow_unsigned) {
@@ -107,6 +128,7 @@ pub(crate) fn check(
     let block = match kind {
         Kind::Udp => "udp",
         Kind::Tcp => "tcp",
+        Kind::WebSocket => "websocket",
     };
     if let Some((remote, _)) = &connect {
         if kind == Kind::Tcp
@@ -174,7 +196,77 @@ pub(crate) fn check(
             peers,
             signing,
         }),
+        Kind::WebSocket => Interface::WebSocket(WebSocketInterface {
+            port: port.map_or(WebSocketInterface::DEFAULT_PORT, |(p, _)| p),
+            address,
+            max_bitrate,
+            peers,
+            signing,
+            origins,
+        }),
     })
+}
+
+/// A web origin as browsers send it in the `Origin` header: `http://` or `https://`, a
+/// host (a name, an IPv4 address or a bracketed IPv6 one) and an optional port, no path.
+/// Returned in lower case (browsers send scheme and host so).
+fn web_origin(text: &str) -> Result<String, TextError> {
+    let error = |at: std::ops::Range<usize>, message: &str, note: &str| TextError {
+        at,
+        message: message.to_string(),
+        note: Some(note.to_string()),
+    };
+    let form = "write SCHEME://HOST or SCHEME://HOST:PORT, e.g. http://localhost:8080";
+    let lower = text.to_ascii_lowercase();
+    let Some(rest) = lower
+        .strip_prefix("http://")
+        .or_else(|| lower.strip_prefix("https://"))
+    else {
+        return Err(error(
+            0..text.len(),
+            "expected an origin starting with http:// or https://",
+            form,
+        ));
+    };
+    let host_at = text.len() - rest.len();
+    if let Some(slash) = rest.find(['/', '?', '#', '@']) {
+        return Err(error(
+            host_at + slash..text.len(),
+            "an origin has no path, query or user",
+            form,
+        ));
+    }
+    let (host, port) = match rest.rfind(':') {
+        Some(colon) if !rest[colon..].contains(']') => (&rest[..colon], Some(&rest[colon + 1..])),
+        _ => (rest, None),
+    };
+    let host_ok = match host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+        Some(v6) => v6.parse::<Ipv6Addr>().is_ok(),
+        None => {
+            !host.is_empty()
+                && host
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '.' | '_'))
+        }
+    };
+    if !host_ok {
+        return Err(error(
+            host_at..host_at + host.len(),
+            "expected a host name or address",
+            form,
+        ));
+    }
+    if let Some(port) = port {
+        let at = host_at + host.len() + 1;
+        if !matches!(port.parse::<u16>(), Ok(p) if p > 0) || port.starts_with('+') {
+            return Err(error(
+                at..text.len(),
+                "expected a port number (1 - 65535)",
+                form,
+            ));
+        }
+    }
+    Ok(lower)
 }
 
 fn family(ip: IpAddr) -> &'static str {

@@ -55,4 +55,17 @@ pub trait Driver {
 
     /// True if nothing the core handed out is still waiting to be written.
     fn idle(&self) -> bool;
+
+    /// When the driver wants [`Driver::expire`] called (a WebSocket handshake's time
+    /// limit), if ever. Asked when the driver joins the loop; the loop looks once a
+    /// second, so the call comes up to a second late.
+    fn deadline(&self) -> Option<Timestamp> {
+        None
+    }
+
+    /// Its [`Driver::deadline`] has passed: [`Progress::Lost`] if it gave up (reported
+    /// to the core).
+    fn expire(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {
+        Progress::Done
+    }
 }

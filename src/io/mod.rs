@@ -4,7 +4,7 @@
 //!
 //! - `runtime`: the loop — wait, read, core, send, arm the one timer;
 //! - `driver`: what every transport driver does for the loop;
-//! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
+//! - `udp`, `tcp`, `websocket`, `serial`: the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `notify`: systemd's readiness, reload and watchdog notifications;
@@ -33,5 +33,6 @@ mod stream;
 mod sys;
 mod tcp;
 mod udp;
+mod websocket;
 
 pub use runtime::run;

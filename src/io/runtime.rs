@@ -105,6 +105,12 @@ struct Runtime {
     notifier: Option<Notifier>,
     /// When the watchdog is fed next (when systemd asked for one).
     next_watchdog: Option<Timestamp>,
+    /// Slots whose driver had a deadline when it joined (see [`Driver::deadline`]):
+    /// looked at once a second until it has none.
+    expiring: Vec<usize>,
+    /// When [`Runtime::expiring`] is looked at next (the core's once-a-second tick
+    /// wakes the loop by then).
+    next_expiry: Timestamp,
 }
 
 impl Runtime {
@@ -303,6 +309,9 @@ impl Runtime {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
         }
         self.slot_of[interface.0] = key;
+        if self.slots[key].driver.deadline().is_some() {
+            self.expiring.push(key);
+        }
         self.watch(key);
         if ready {
             self.mark_readable(key);
@@ -439,6 +448,33 @@ impl Runtime {
         }
     }
 
+    /// Gives the drivers whose deadline has passed their [`Driver::expire`] (once a
+    /// second); those left without a deadline stop being looked at.
+    fn expire(&mut self, now: Timestamp) {
+        if self.expiring.is_empty() || now < self.next_expiry {
+            return;
+        }
+        self.next_expiry = now + Duration::from_secs(1);
+        let mut keys = std::mem::take(&mut self.expiring);
+        keys.retain(|&key| {
+            let Some(slot) = self.slots.get_mut(key) else {
+                return false;
+            };
+            match slot.driver.deadline() {
+                Some(due) if now >= due => {
+                    if slot.driver.expire(&mut self.engine, now) == Progress::Lost {
+                        self.close(key);
+                        return false;
+                    }
+                    true
+                }
+                Some(_) => true,
+                None => false,
+            }
+        });
+        self.expiring.extend(keys);
+    }
+
     /// Feeds systemd's watchdog when it is due (at half its interval): from the loop's
     /// own turn, so a loop that is stuck is restarted.
     fn feed_watchdog(&mut self, now: Timestamp) {
@@ -556,6 +592,7 @@ impl Runtime {
             if now >= self.engine.poll_timeout() {
                 self.engine.handle_timeout(now);
             }
+            self.expire(now);
             self.handle_notices(now);
             self.record();
             self.write_flight_log();
@@ -765,6 +802,8 @@ fn start(
         source: source.map(str::to_string),
         notifier,
         next_watchdog,
+        expiring: Vec::new(),
+        next_expiry: Timestamp::ZERO,
     };
     for driver in drivers {
         rt.add(driver, false);

@@ -43,18 +43,43 @@ pub fn label(config: &TcpInterface) -> String {
     config.label()
 }
 
-/// A server's listening socket.
+/// Makes the driver of a connection the core accepted as interface `id`.
+pub(super) type Accepted = Box<dyn Fn(InterfaceId, TcpStream, Timestamp) -> Box<dyn Driver>>;
+
+/// A server's listening socket (of a `tcp` block, or of a `websocket` block: what
+/// `accepted` makes of each connection tells them apart).
 pub struct TcpListenerDriver {
     interface: InterfaceId,
     listener: TcpListener,
     accepted: Vec<Box<dyn Driver>>,
+    make: Accepted,
 }
 
 impl TcpListenerDriver {
     /// Listens for `config` (a port in use stops the start, naming the block).
     pub fn bind(config: &TcpInterface, interface: InterfaceId) -> io::Result<Self> {
         let local = SocketAddr::new(config.local_address(), config.port);
-        let named = |e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", label(config)));
+        let make: Accepted = Box::new(|id, stream, _| {
+            Box::new(TcpStreamDriver {
+                interface: id,
+                stream: Some(stream),
+                client: None,
+                connecting: false,
+                io: StreamIo::default(),
+            })
+        });
+        Self::listen(local, &label(config), interface, make)
+    }
+
+    /// Listens on `local` (errors name `label`); `make` gives each connection the core
+    /// accepts its driver.
+    pub(super) fn listen(
+        local: SocketAddr,
+        label: &str,
+        interface: InterfaceId,
+        make: Accepted,
+    ) -> io::Result<Self> {
+        let named = |e: io::Error| io::Error::new(e.kind(), format!("{label}: {e}"));
         let socket = Socket::new(
             Domain::for_address(local),
             Type::STREAM,
@@ -72,6 +97,7 @@ impl TcpListenerDriver {
             interface,
             listener: socket.into(),
             accepted: Vec::new(),
+            make,
         })
     }
 }
@@ -102,13 +128,7 @@ impl Driver for TcpListenerDriver {
                     }
                     // Refused by the limits: dropping the stream closes it.
                     if let Some(id) = engine.accept(self.interface, peer, now) {
-                        self.accepted.push(Box::new(TcpStreamDriver {
-                            interface: id,
-                            stream: Some(stream),
-                            client: None,
-                            connecting: false,
-                            io: StreamIo::default(),
-                        }));
+                        self.accepted.push((self.make)(id, stream, now));
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,

@@ -83,6 +83,8 @@ pub enum Kind {
         connections: usize,
         /// The `max_bitrate` of each connection it accepts (0: no limit).
         max_bitrate: u64,
+        /// How its connections' links are named: `SCHEME:a.b.c.d:port` (`tcp`, `ws`).
+        scheme: &'static str,
     },
 }
 

@@ -35,6 +35,8 @@ pub(crate) enum Identity {
     TcpServer(SocketAddr),
     /// A TCP client of this remote (as written).
     TcpClient(String),
+    /// A WebSocket server listening at this address and port.
+    WebSocketServer(SocketAddr),
     /// A serial port at this path (as written).
     Serial(String),
 }
@@ -51,6 +53,9 @@ impl Identity {
                 None => Identity::TcpServer(SocketAddr::new(t.local_address(), t.port)),
                 Some(remote) => Identity::TcpClient(remote.to_string()),
             },
+            Interface::WebSocket(w) => {
+                Identity::WebSocketServer(SocketAddr::new(w.local_address(), w.port))
+            }
             Interface::Serial(s) => Identity::Serial(s.device.clone()),
         }
     }
@@ -150,6 +155,7 @@ fn in_place(iface: &Interface) -> (Option<u64>, Option<bool>, Option<&PeerLimits
     match iface {
         Interface::Udp(u) => (u.max_bitrate, allow_unsigned, Some(&u.peers)),
         Interface::Tcp(t) => (t.max_bitrate, allow_unsigned, Some(&t.peers)),
+        Interface::WebSocket(w) => (w.max_bitrate, allow_unsigned, Some(&w.peers)),
         Interface::Serial(s) => (s.max_bitrate, allow_unsigned, None),
     }
 }
@@ -163,6 +169,9 @@ fn fixed_part(iface: &Interface) -> Interface {
         }
         Interface::Tcp(t) => {
             (t.max_bitrate, t.signing, t.peers) = (None, None, PeerLimits::default());
+        }
+        Interface::WebSocket(w) => {
+            (w.max_bitrate, w.signing, w.peers) = (None, None, PeerLimits::default());
         }
         Interface::Serial(s) => (s.max_bitrate, s.signing) = (None, None),
     }

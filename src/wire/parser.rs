@@ -237,6 +237,12 @@ impl Parser {
         (!self.pending.is_empty()).then_some(self.pending_offset)
     }
 
+    /// Counts `n` bytes that the transport dropped before they reached the parser (the
+    /// text messages of a WebSocket, which carries MAVLink in binary ones) as junk.
+    pub fn count_dropped(&mut self, n: usize) {
+        self.stats.junk_bytes += n as u64;
+    }
+
     /// Forgets any partial frame (e.g. when a datagram arrives from another sender).
     /// The held-back bytes are counted as junk.
     pub fn clear(&mut self) {

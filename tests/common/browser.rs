@@ -1,6 +1,8 @@
 //! Headless Chromium (the Debian `chromium` package, which `scripts/test` installs) for
 //! tests of the status page: load a URL, let its scripts run for a while of virtual time,
-//! and take the rendered DOM or a screenshot. Every run is bounded in time.
+//! and take the rendered DOM or a screenshot. Every run is bounded in time. For pages
+//! that talk over sockets, [`open`] runs the browser in real time until the test, having
+//! seen the outcome on its own sockets, drops it.
 
 use std::io::Read;
 use std::path::Path;
@@ -26,6 +28,51 @@ pub fn chromium() -> String {
          chromium package) or name one in MAVTABLES_CHROMIUM"
     );
     bin
+}
+
+/// A browser left running on a page (in real time: virtual time would end the page while
+/// its sockets are still busy). Dropping it kills the browser and its helpers (its
+/// process group).
+pub struct Browser {
+    child: Option<std::process::Child>,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let group = child.id() as i32;
+            // SAFETY: kill(2) on the process group we created; no memory is involved.
+            unsafe {
+                libc::kill(-group, libc::SIGKILL);
+            }
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}
+
+/// Opens `url` in a headless browser of its own (profile in `scratch`, process group of
+/// its own, output discarded) and leaves it running.
+pub fn open(scratch: &Scratch, url: &str) -> Browser {
+    use std::os::unix::process::CommandExt;
+    let profile = scratch.dir.join("chromium-live");
+    let child = Command::new(chromium())
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--no-first-run",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg(url)
+        .process_group(0)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn chromium");
+    Browser { child: Some(child) }
 }
 
 /// Runs the browser headless on `url` with `extra` flags (a profile of its own in

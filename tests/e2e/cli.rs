@@ -528,6 +528,7 @@ fn endpoints_through_the_binary() {
         "\n  udp-client:HOST:PORT ",
         "\n  tcp-server:ADDRESS:PORT ",
         "\n  tcp-client:HOST:PORT ",
+        "\n  ws-server:ADDRESS:PORT ",
         "udp-client:[::1]:14550",
     ] {
         assert!(help.contains(line), "{line} missing from\n{help}");

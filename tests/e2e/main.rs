@@ -32,3 +32,5 @@ mod stats_e2e;
 mod stats_page_browser;
 mod tcp_faults_e2e;
 mod transports_e2e;
+mod websocket_browser;
+mod websocket_e2e;

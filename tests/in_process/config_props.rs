@@ -88,6 +88,14 @@ const PIECES: &[&str] = &[
     "%q",
     "%",
     "/var/log/%H.tlog",
+    "websocket",
+    "origin",
+    "http://",
+    "HTTPS://",
+    "localhost",
+    ":8080",
+    "?",
+    "@",
 ];
 
 fn check(src: &str) {
@@ -103,6 +111,22 @@ fn check(src: &str) {
                     mavtables::recording::FilePattern::parse(&path).is_ok(),
                     "{path}"
                 );
+            }
+            for iface in &c.interfaces {
+                if let config::Interface::WebSocket(w) = iface {
+                    for o in &w.origins {
+                        // Lower case, a scheme, a host, no path.
+                        assert_eq!(*o, o.to_ascii_lowercase());
+                        let rest = o
+                            .strip_prefix("http://")
+                            .or_else(|| o.strip_prefix("https://"))
+                            .expect("a scheme");
+                        assert!(
+                            !rest.is_empty() && !rest.contains(['/', '?', '#', '@']),
+                            "{o}"
+                        );
+                    }
+                }
             }
         }
         Err(errors) => {
@@ -124,6 +148,12 @@ fn check(src: &str) {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn any_origin_value_is_taken_or_refused_located(value in "[ -~]{0,40}") {
+        check(&format!("websocket {{ origin {value}; }}"));
+        check(&format!("websocket {{ origin http://{value}; }}"));
+    }
 
     #[test]
     fn arbitrary_text_never_panics(src in any::<String>()) {

@@ -17,6 +17,7 @@ use super::super::log;
 use super::super::serial::SerialDriver;
 use super::super::tcp::{TcpListenerDriver, TcpStreamDriver};
 use super::super::udp::UdpDriver;
+use super::super::websocket;
 use super::{
     RECORDER_FINISH, Runtime, open_state_file, start_flight_log, start_recording, start_stats,
 };
@@ -37,6 +38,7 @@ pub(super) fn driver_for(
         Interface::Udp(u) => Box::new(UdpDriver::new(u, id, waker.clone())?),
         Interface::Tcp(t) if t.connect.is_none() => Box::new(TcpListenerDriver::bind(t, id)?),
         Interface::Tcp(t) => Box::new(TcpStreamDriver::client(t, id, waker.clone())),
+        Interface::WebSocket(w) => Box::new(websocket::listener(w, id)?),
     })
 }
 

@@ -323,6 +323,10 @@ impl Engine {
                     }
                 }
             }
+            Interface::WebSocket(w) => {
+                let rate = w.max_bitrate.unwrap_or(0);
+                self.add_listener_of("ws", w.label(), w.peers.clone(), rate)
+            }
         };
         if let (Some(key), Some(s)) = (key, iface.signing()) {
             let link_id = u8::try_from(index % 256).unwrap_or(0);
@@ -344,6 +348,7 @@ impl Engine {
         let (rate, limits) = match iface {
             Interface::Udp(u) => (u.max_bitrate, Some(&u.peers)),
             Interface::Tcp(t) => (t.max_bitrate, Some(&t.peers)),
+            Interface::WebSocket(w) => (w.max_bitrate, Some(&w.peers)),
             Interface::Serial(s) => (s.max_bitrate, None),
         };
         let signing = iface.signing().zip(key).map(|(s, key)| {

@@ -121,6 +121,14 @@ impl Engine {
         self.take_output();
     }
 
+    /// Counts `n` bytes that stream interface `id` received but does not route (a
+    /// WebSocket's text message) as junk of its parser.
+    pub fn stream_junk(&mut self, id: InterfaceId, n: usize) {
+        if let Some(interface) = self.interfaces.get_mut(id.0) {
+            interface.parser.count_dropped(n);
+        }
+    }
+
     /// Moves the router's events into the notices and readies its output for reuse.
     pub(super) fn take_output(&mut self) {
         self.send_flight_log_frames();

@@ -118,6 +118,18 @@ impl Engine {
         limits: PeerLimits,
         max_bitrate: u64,
     ) -> InterfaceId {
+        self.add_listener_of("tcp", label, limits, max_bitrate)
+    }
+
+    /// A stream server like [`Engine::add_listener`] whose connections' links are named
+    /// `SCHEME:a.b.c.d:port` (`ws` for a WebSocket server).
+    pub fn add_listener_of(
+        &mut self,
+        scheme: &'static str,
+        label: String,
+        limits: PeerLimits,
+        max_bitrate: u64,
+    ) -> InterfaceId {
         self.push_interface(Interface::reliable_stream(
             label,
             0,
@@ -125,12 +137,13 @@ impl Engine {
                 limits,
                 connections: 0,
                 max_bitrate,
+                scheme,
             },
         ))
     }
 
     /// A connection from `peer` arrived at server `listener`: returns its new stream
-    /// interface (one link, named `tcp:a.b.c.d:port`, paced at the server's
+    /// interface (one link, named `tcp:a.b.c.d:port` or `ws:…`, paced at the server's
     /// `max_bitrate`), or None if the server's limits refuse it (counted; said once per
     /// reason). Close a refused connection at once.
     pub fn accept(
@@ -144,6 +157,7 @@ impl Engine {
             limits,
             connections,
             max_bitrate,
+            scheme,
         } = &mut server.kind
         else {
             return None;
@@ -159,7 +173,7 @@ impl Engine {
         let max_bitrate = *max_bitrate;
         let edge = server.signing.as_ref().map(Edge::fresh_copy);
         let group = server.group;
-        let name = format!("tcp:{peer}");
+        let name = format!("{scheme}:{peer}");
         let link = self.core.router.add_connection_link(&name, now);
         self.core.router.set_group(link, group);
         self.core.notices.push_back(Notice::LinkAdded {
