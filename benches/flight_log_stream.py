@@ -9,7 +9,8 @@ Each round (default 3), in a temp dir: makes a dataflash log of N ATT records (d
 20000: 460,887 bytes, 2,305 blocks) with tests/py/dataflash_log.py; starts the release
 router with one UDP interface on 127.0.0.1, a `flight_log { system 2; }` block and a
 `stats` block; lets a ground station (255.190) announce itself; then, at the same time,
-replays tests/data/flight/rural.tlog (33,261 frames; its vehicle is system 1) with
+replays tests/data/flight/rural.tlog (33,261 frames; its vehicle is system 1, a PX4
+whose heartbeats arm and disarm: the logging vehicle must be another system) with
 `mavtables replay --speed max` over and over as full-rate telemetry, and runs
 tests/py/ardupilot_log_peer.py as the ArduPilot of system 2 streaming the log with at
 most W (default 64) blocks unacknowledged. The replayed frames are kept from the
@@ -17,13 +18,16 @@ logging vehicle by a rule (`reject if to 2.0/8;`): a real autopilot is not sent 
 vehicle's telemetry, and the Python peer would spend its time parsing it. The router's
 /stats is sampled every 100 ms meanwhile.
 
+Each round also streams the log once without the telemetry (interleaved), for the ratio.
 Prints per round, and the medians over rounds: the log's blocks/s and KB/s (from the
 peer's first block sent to its last block ACKed), the frames/s the router took in and
-forwarded to the ground station meanwhile (interpolated from /stats over that span),
+forwarded to the ground station meanwhile (from the router's /stats snapshots, taken
+once a second, around that span),
 whether the written .bin equals the source (zero-padded to whole blocks) byte for byte,
 the flight log's lost / dropped / resent counts and the links' queue drops.
 
 Not run by `cargo test` (a script, not a bench target): one round takes about 10 s.
+Exits non-zero if a written log differs from the source or lost or dropped blocks.
 """
 
 import argparse
@@ -81,21 +85,26 @@ def frames_in(s):
     return sum(i["frames"] for i in s["interfaces"])
 
 
-def at(samples, t, key):
-    """`key` of the samples interpolated at monotonic time t."""
-    before = [x for x in samples if x[0] <= t]
-    after = [x for x in samples if x[0] >= t]
-    if not before:
-        return after[0][key]
-    if not after:
-        return before[-1][key]
-    a, b = before[-1], after[0]
-    if b[0] == a[0]:
-        return a[key]
-    return a[key] + (b[key] - a[key]) * (t - a[0]) / (b[0] - a[0])
+def rates(samples, t0, t1):
+    """Frames/s in and to the ground station over the /stats snapshots around [t0, t1].
+
+    /stats is a snapshot the router takes once a second (`uptime_s` says when), so the
+    rates are taken between the last snapshot at or before t0 and the first at or after
+    t1: a span of the log's length plus up to 2 s, over which the telemetry runs
+    without a pause.
+    """
+    # The router's start on the monotonic clock: a snapshot is never newer than the
+    # moment it is read.
+    epoch = min(at - s[0] for at, s in samples)
+    snaps = sorted({s[0]: s for _, s in samples}.values())
+    a = [x for x in snaps if epoch + x[0] <= t0] or snaps[:1]
+    b = [x for x in snaps if epoch + x[0] >= t1] or snaps[-1:]
+    a, b = a[-1], b[0]
+    span = b[0] - a[0]
+    return (b[1] - a[1]) / span, (b[2] - a[2]) / span, span
 
 
-def one_round(records, window):
+def one_round(records, window, telemetry):
     port = free_port(socket.SOCK_DGRAM)
     http = free_port(socket.SOCK_STREAM)
     with tempfile.TemporaryDirectory() as tmp:
@@ -119,6 +128,7 @@ def one_round(records, window):
         proc = subprocess.Popen([ROUTER, "--config", conf],
                                 stdout=subprocess.DEVNULL, stderr=err)
         stop = threading.Event()
+        stop_sampling = threading.Event()
         samples = []
         try:
             wait_stats(http, proc)
@@ -152,9 +162,10 @@ def one_round(records, window):
                     replays[0] += 1
 
             def sample():
-                while not stop.is_set():
+                while not stop_sampling.is_set():
                     s = stats(http)
-                    samples.append((time.monotonic(), frames_in(s), gcs_out(s, gcs_port)))
+                    snap = (s["uptime_s"], frames_in(s), gcs_out(s, gcs_port))
+                    samples.append((time.monotonic(), snap))
                     time.sleep(0.1)
 
             threads = [threading.Thread(target=f, daemon=True) for f in (drain, sample)]
@@ -162,16 +173,16 @@ def one_round(records, window):
                 t.start()
             time.sleep(0.3)  # the router learns the ground station
             replayer = threading.Thread(target=replay, daemon=True)
-            replayer.start()
-            time.sleep(0.5)  # the telemetry is at full rate before the log begins
+            if telemetry:
+                replayer.start()
+                time.sleep(0.5)  # the telemetry is at full rate before the log begins
             peer = subprocess.run(
                 [PY, os.path.join(ROOT, "tests/py/ardupilot_log_peer.py"), "--udp",
                  f"127.0.0.1:{port}", "--log", source, "--sys", str(LOG_SYSTEM), "--window",
                  str(window), "--timing"], capture_output=True, text=True, check=True)
             stop.set()
-            replayer.join()
-            for t in threads:
-                t.join()
+            if telemetry:
+                replayer.join()
             # The log is closed 2 s after the disarm.
             end = time.monotonic() + 10
             while time.monotonic() < end:
@@ -181,16 +192,19 @@ def one_round(records, window):
                     break
                 time.sleep(0.1)
             final = stats(http)
+            stop_sampling.set()
+            for t in threads:
+                t.join()
         finally:
             stop.set()
+            stop_sampling.set()
             proc.terminate()
             proc.wait()
         flight = next(line for line in peer.stdout.splitlines() if line.startswith("flight "))
         stream = next(line for line in peer.stdout.splitlines() if line.startswith("stream "))
         t0, t1 = (float(x) for x in stream.split()[2:4])
         seconds = t1 - t0
-        fin = at(samples, t1, 1) - at(samples, t0, 1)
-        fout = at(samples, t1, 2) - at(samples, t0, 2)
+        in_fps, gcs_fps, span = rates(samples, t0, t1)
         written = sorted(os.listdir(logs)) if os.path.isdir(logs) else []
         bins = [w for w in written if w.endswith(".bin")]
         same = len(bins) == 1 and open(os.path.join(logs, bins[0]), "rb").read() == padded
@@ -199,8 +213,9 @@ def one_round(records, window):
         return {
             "blocks_s": blocks / seconds,
             "kb_s": len(padded) / seconds / 1000,
-            "in_fps": fin / seconds,
-            "gcs_fps": fout / seconds,
+            "in_fps": in_fps,
+            "gcs_fps": gcs_fps,
+            "span": span,
             "seconds": seconds,
             "blocks": blocks,
             "bytes": len(padded),
@@ -227,28 +242,36 @@ def main():
     if not os.path.exists(ROUTER):
         sys.exit("no target/release/mavtables: run cargo build --release first")
     print(f"load average before: {os.getloadavg()[0]:.2f}")
-    results = []
+    results = {True: [], False: []}
     for n in range(a.rounds):
-        r = one_round(a.records, a.window)
-        results.append(r)
-        print(f"round {n + 1}: {r['blocks']} blocks ({r['bytes']} bytes) in {r['seconds']:.2f} s: "
-              f"{r['blocks_s']:.0f} blocks/s, {r['kb_s']:.1f} KB/s; meanwhile the router took in "
-              f"{r['in_fps']:.0f} frames/s and sent the ground station {r['gcs_fps']:.0f}/s "
-              f"({r['replays']} replays done, {r['gcs_got']} frames read); "
-              f"written .bin {'equals' if r['same'] else 'DIFFERS FROM'} the source "
-              f"({r['files']} files); lost {r['lost']}, dropped {r['dropped']}, "
-              f"NACKs {r['nacks']}, resent {r['resent']}, duplicates {r['duplicates']}, "
-              f"queue drops {r['queue_drops']}; peer: {r['peer']}")
-    med = {k: statistics.median(r[k] for r in results)
-           for k in ("blocks_s", "kb_s", "in_fps", "gcs_fps", "seconds")}
-    print(f"median over {a.rounds} rounds: {med['blocks_s']:.0f} blocks/s "
-          f"({med['kb_s']:.1f} KB/s, {med['seconds']:.2f} s), router in "
-          f"{med['in_fps']:.0f} frames/s, to the ground station {med['gcs_fps']:.0f} frames/s; "
-          f"byte for byte: {sum(r['same'] for r in results)}/{a.rounds}; lost "
-          f"{sum(r['lost'] for r in results)}, dropped {sum(r['dropped'] for r in results)}, "
-          f"queue drops {sum(r['queue_drops'] for r in results)}")
+        for telemetry in (True, False):
+            r = one_round(a.records, a.window, telemetry)
+            results[telemetry].append(r)
+            print(f"round {n + 1} {'with' if telemetry else 'without'} telemetry: "
+                  f"{r['blocks']} blocks ({r['bytes']} bytes) in {r['seconds']:.2f} s: "
+                  f"{r['blocks_s']:.0f} blocks/s, {r['kb_s']:.1f} KB/s; meanwhile the router "
+                  f"took in {r['in_fps']:.0f} frames/s and sent the ground station "
+                  f"{r['gcs_fps']:.0f}/s (over {r['span']:.0f} s of snapshots; {r['replays']} replays done, {r['gcs_got']} frames "
+                  f"read); written .bin {'equals' if r['same'] else 'DIFFERS FROM'} the source "
+                  f"({r['files']} files); lost {r['lost']}, dropped {r['dropped']}, "
+                  f"NACKs {r['nacks']}, resent {r['resent']}, duplicates {r['duplicates']}, "
+                  f"queue drops {r['queue_drops']}; peer: {r['peer']}", flush=True)
+    med = {}
+    for telemetry, rs in results.items():
+        m = {k: statistics.median(r[k] for r in rs)
+             for k in ("blocks_s", "kb_s", "in_fps", "gcs_fps", "seconds")}
+        med[telemetry] = m
+        print(f"median over {a.rounds} rounds {'with' if telemetry else 'without'} telemetry: "
+              f"{m['blocks_s']:.0f} blocks/s ({m['kb_s']:.1f} KB/s, {m['seconds']:.2f} s), "
+              f"router in {m['in_fps']:.0f} frames/s, to the ground station "
+              f"{m['gcs_fps']:.0f} frames/s; byte for byte: {sum(r['same'] for r in rs)}/"
+              f"{a.rounds}; lost {sum(r['lost'] for r in rs)}, dropped "
+              f"{sum(r['dropped'] for r in rs)}, queue drops {sum(r['queue_drops'] for r in rs)}")
+    print(f"log rate with telemetry / without: "
+          f"{med[True]['blocks_s'] / med[False]['blocks_s']:.2f}")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
-    if not all(r["same"] and r["lost"] == 0 and r["dropped"] == 0 for r in results):
+    if not all(r["same"] and r["lost"] == 0 and r["dropped"] == 0
+               for rs in results.values() for r in rs):
         sys.exit(1)
 
 
