@@ -24,7 +24,8 @@ peer's first block sent to its last block ACKed), the frames/s the router took i
 forwarded to the ground station meanwhile (from the router's /stats snapshots, taken
 once a second, around that span),
 whether the written .bin equals the source (zero-padded to whole blocks) byte for byte,
-the flight log's lost / dropped / resent counts and the links' queue drops.
+the flight log's lost / dropped / resent counts, the links' queue drops and the
+router's CPU time over the whole round (start, log, the 2 s until the file is closed).
 
 Not run by `cargo test` (a script, not a bench target): one round takes about 10 s.
 Exits non-zero if a written log differs from the source or lost or dropped blocks.
@@ -50,6 +51,16 @@ PY = os.path.join(ROOT, ".venv/bin/python")
 ROUTER = os.path.join(ROOT, "target/release/mavtables")
 BLOCK = 200
 LOG_SYSTEM = 2
+
+
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of process `pid` so far."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICKS
 
 
 def free_port(kind):
@@ -192,6 +203,7 @@ def one_round(records, window, telemetry):
                     break
                 time.sleep(0.1)
             final = stats(http)
+            cpu = cpu_seconds(proc.pid)
             stop_sampling.set()
             for t in threads:
                 t.join()
@@ -216,6 +228,7 @@ def one_round(records, window, telemetry):
             "in_fps": in_fps,
             "gcs_fps": gcs_fps,
             "span": span,
+            "cpu": cpu,
             "seconds": seconds,
             "blocks": blocks,
             "bytes": len(padded),
@@ -255,16 +268,17 @@ def main():
                   f"read); written .bin {'equals' if r['same'] else 'DIFFERS FROM'} the source "
                   f"({r['files']} files); lost {r['lost']}, dropped {r['dropped']}, "
                   f"NACKs {r['nacks']}, resent {r['resent']}, duplicates {r['duplicates']}, "
-                  f"queue drops {r['queue_drops']}; peer: {r['peer']}", flush=True)
+                  f"queue drops {r['queue_drops']}; router CPU {r['cpu']:.2f} s in all; "
+                  f"peer: {r['peer']}", flush=True)
     med = {}
     for telemetry, rs in results.items():
         m = {k: statistics.median(r[k] for r in rs)
-             for k in ("blocks_s", "kb_s", "in_fps", "gcs_fps", "seconds")}
+             for k in ("blocks_s", "kb_s", "in_fps", "gcs_fps", "seconds", "cpu")}
         med[telemetry] = m
         print(f"median over {a.rounds} rounds {'with' if telemetry else 'without'} telemetry: "
               f"{m['blocks_s']:.0f} blocks/s ({m['kb_s']:.1f} KB/s, {m['seconds']:.2f} s), "
               f"router in {m['in_fps']:.0f} frames/s, to the ground station "
-              f"{m['gcs_fps']:.0f} frames/s; byte for byte: {sum(r['same'] for r in rs)}/"
+              f"{m['gcs_fps']:.0f} frames/s, router CPU {m['cpu']:.2f} s; byte for byte: {sum(r['same'] for r in rs)}/"
               f"{a.rounds}; lost {sum(r['lost'] for r in rs)}, dropped "
               f"{sum(r['dropped'] for r in rs)}, queue drops {sum(r['queue_drops'] for r in rs)}")
     print(f"log rate with telemetry / without: "
