@@ -5,14 +5,15 @@ usage:
   ardupilot_log_peer.py --udp HOST:PORT --log FILE [--skip S,S,...] [--flights N]
                         [--sys S] [--window W] [--vanish-after B] [--timing]
 
-The peer is system 1 component 1, an ArduPilot (HEARTBEAT.autopilot 3) sending
+The peer is system S (default 1) component 1, an ArduPilot (HEARTBEAT.autopilot 3) sending
 heartbeats every 100 ms. For each of N flights (default 1) it arms (base_mode has
 MAV_MODE_FLAG_SAFETY_ARMED), waits for REMOTE_LOG_BLOCK_STATUS with seqno
 MAV_REMOTE_LOG_DATA_BLOCK_START addressed to it, and sends FILE in REMOTE_LOG_DATA_BLOCK
 of 200 bytes (the last one zero-padded), numbered from 0, to the address the start came
 from, with at most W (default 32) blocks not yet acknowledged. The first sending of each
 seqno in --skip is left out: only a NACK (status 0) or the peer's own resend timer
-(1 s, as ArduPilot) brings it. Once every block is ACKed it disarms and waits for the
+brings it (1 s; ArduPilot's AP_Logger_MAVLink resends after 100 ms, a longer timer here
+leaves the gap to the router's NACK). Once every block is ACKed it disarms and waits for the
 stop (seqno MAV_REMOTE_LOG_DATA_BLOCK_STOP).
 
 With --vanish-after B the peer goes silent for good (no heartbeat, nothing) once it
