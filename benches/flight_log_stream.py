@@ -24,7 +24,9 @@ peer's first block sent to its last block ACKed), the frames/s the router took i
 forwarded to the ground station meanwhile (from the router's /stats snapshots, taken
 once a second, around that span),
 whether the written .bin equals the source (zero-padded to whole blocks) byte for byte,
-the flight log's lost / dropped / resent counts, the links' queue drops and the
+the flight log's lost / dropped / resent counts, the links' queue drops, the UDP
+datagrams the kernel dropped meanwhile for a full receive buffer (/proc/net/snmp
+RcvbufErrors: the whole machine's, the ground station's socket included) and the
 router's CPU time over the whole round (start, log, the 2 s until the file is closed).
 
 Not run by `cargo test` (a script, not a bench target): one round takes about 10 s.
@@ -61,6 +63,13 @@ def cpu_seconds(pid):
     with open(f"/proc/{pid}/stat") as f:
         fields = f.read().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / TICKS
+
+
+def udp_rcvbuf_errors():
+    """Datagrams the kernel dropped for a full receive buffer, on the whole machine."""
+    with open("/proc/net/snmp") as f:
+        rows = [line.split() for line in f if line.startswith("Udp:")]
+    return int(rows[1][rows[0].index("RcvbufErrors")])
 
 
 def free_port(kind):
@@ -179,6 +188,7 @@ def one_round(records, window, telemetry):
                     samples.append((time.monotonic(), snap))
                     time.sleep(0.1)
 
+            overflows = udp_rcvbuf_errors()
             threads = [threading.Thread(target=f, daemon=True) for f in (drain, sample)]
             for t in threads:
                 t.start()
@@ -194,6 +204,7 @@ def one_round(records, window, telemetry):
             stop.set()
             if telemetry:
                 replayer.join()
+            overflows = udp_rcvbuf_errors() - overflows
             # The log is closed 2 s after the disarm.
             end = time.monotonic() + 10
             while time.monotonic() < end:
@@ -229,6 +240,7 @@ def one_round(records, window, telemetry):
             "gcs_fps": gcs_fps,
             "span": span,
             "cpu": cpu,
+            "overflows": overflows,
             "seconds": seconds,
             "blocks": blocks,
             "bytes": len(padded),
@@ -268,7 +280,8 @@ def main():
                   f"read); written .bin {'equals' if r['same'] else 'DIFFERS FROM'} the source "
                   f"({r['files']} files); lost {r['lost']}, dropped {r['dropped']}, "
                   f"NACKs {r['nacks']}, resent {r['resent']}, duplicates {r['duplicates']}, "
-                  f"queue drops {r['queue_drops']}; router CPU {r['cpu']:.2f} s in all; "
+                  f"queue drops {r['queue_drops']}; UDP datagrams dropped by the kernel for a "
+                  f"full receive buffer (anywhere on the machine) {r['overflows']}; router CPU {r['cpu']:.2f} s in all; "
                   f"peer: {r['peer']}", flush=True)
     med = {}
     for telemetry, rs in results.items():
