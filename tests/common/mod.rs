@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod browser;
+pub mod disk;
 pub mod http_fixture;
 pub mod mavproxy;
 pub mod needs;

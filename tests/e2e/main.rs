@@ -18,6 +18,7 @@ mod config_signing;
 mod dialect_runtime;
 mod file_limits;
 mod flight_log_e2e;
+mod flight_log_rotation;
 mod forwarding_exact;
 mod log_backpressure;
 mod peers_mavproxy;

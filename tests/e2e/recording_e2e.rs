@@ -14,6 +14,7 @@ use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use common::disk::{Tmpfs, date_back, new_year};
 use common::router::{BIN, Guard, Peer, Router, Scratch, Stopped, free_udp_port, hexes};
 use common::run_py;
 
@@ -385,36 +386,6 @@ fn records_reach_the_file_within_a_second() {
     router.stop();
 }
 
-/// A 1 MiB tmpfs mounted for one test, unmounted when dropped.
-struct Tmpfs(PathBuf);
-
-impl Tmpfs {
-    /// Mounts one at `dir`; fails the test, saying what it needs, when it cannot.
-    fn mount(dir: &Path) -> Tmpfs {
-        fs::create_dir_all(dir).expect("mount point");
-        let out = Command::new("mount")
-            .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs"])
-            .arg(dir)
-            .output();
-        match out {
-            Ok(o) if o.status.success() => Tmpfs(dir.to_path_buf()),
-            Ok(o) => panic!(
-                "cannot mount a tmpfs ({}): the disk tests need root: run them as root (sudo scripts/test)",
-                String::from_utf8_lossy(&o.stderr).trim()
-            ),
-            Err(e) => {
-                panic!("cannot run mount ({e}): the disk tests need util-linux's mount, as root")
-            }
-        }
-    }
-}
-
-impl Drop for Tmpfs {
-    fn drop(&mut self) {
-        let _ = Command::new("umount").arg("-l").arg(&self.0).status();
-    }
-}
-
 /// Fills the file system of `dir` with a file until only about `left` bytes are free.
 fn fill(dir: &Path, left: u64) {
     use std::io::Write;
@@ -486,23 +457,6 @@ fn a_full_disk_drops_records_never_packets() {
     assert_eq!(got.len() as u64, c.written);
     assert_in_order(&got[1..], &sent);
     assert_eq!(fs::metadata(&files[0]).expect("meta").len(), c.bytes);
-}
-
-/// `year`-01-01 00:00:00 UTC.
-fn new_year(year: i32) -> SystemTime {
-    let days = (1970..year)
-        .map(|y| if y % 4 == 0 { 366 } else { 365 })
-        .sum::<u64>();
-    UNIX_EPOCH + Duration::from_secs(days * 86_400)
-}
-
-/// Dates `path` back to `time` (its modification time: what rotation goes by).
-fn date_back(path: &Path, time: SystemTime) {
-    let file = fs::File::options()
-        .write(true)
-        .open(path)
-        .expect("open to date back");
-    file.set_modified(time).expect("set mtime");
 }
 
 /// Runs the router on `config` once, without traffic, and returns the recording it

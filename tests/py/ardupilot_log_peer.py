@@ -3,16 +3,17 @@ MAVLink log backend does, for tests/e2e/flight_log_e2e.rs.
 
 usage:
   ardupilot_log_peer.py --udp HOST:PORT --log FILE [--skip S,S,...] [--flights N]
-                        [--sys S] [--window W] [--vanish-after B]
+                        [--sys S] [--window W] [--vanish-after B] [--timing]
 
-The peer is system 1 component 1, an ArduPilot (HEARTBEAT.autopilot 3) sending
+The peer is system S (default 1) component 1, an ArduPilot (HEARTBEAT.autopilot 3) sending
 heartbeats every 100 ms. For each of N flights (default 1) it arms (base_mode has
 MAV_MODE_FLAG_SAFETY_ARMED), waits for REMOTE_LOG_BLOCK_STATUS with seqno
 MAV_REMOTE_LOG_DATA_BLOCK_START addressed to it, and sends FILE in REMOTE_LOG_DATA_BLOCK
 of 200 bytes (the last one zero-padded), numbered from 0, to the address the start came
 from, with at most W (default 32) blocks not yet acknowledged. The first sending of each
 seqno in --skip is left out: only a NACK (status 0) or the peer's own resend timer
-(1 s, as ArduPilot) brings it. Once every block is ACKed it disarms and waits for the
+brings it (1 s; ArduPilot's AP_Logger_MAVLink resends after 100 ms, a longer timer here
+leaves the gap to the router's NACK). Once every block is ACKed it disarms and waits for the
 stop (seqno MAV_REMOTE_LOG_DATA_BLOCK_STOP).
 
 With --vanish-after B the peer goes silent for good (no heartbeat, nothing) once it
@@ -20,6 +21,10 @@ has sent B blocks, as when the link drops mid-flight, and prints "vanished".
 
 It prints one line per flight, then "done":
   flight N blocks B acks A nacks K nacked S,S,... resent R stop yes|no
+With --timing each flight line is followed by one saying when its first block went and
+its last ACK came (time.monotonic(), the system's CLOCK_MONOTONIC, so that a benchmark
+can line it up with what it sampled meanwhile: benches/flight_log_stream.py):
+  stream N FIRST_SENT LAST_ACKED
 """
 import argparse
 import os
@@ -43,6 +48,7 @@ def main():
     ap.add_argument("--sys", type=int, default=1)
     ap.add_argument("--window", type=int, default=32)
     ap.add_argument("--vanish-after", type=int, default=0)
+    ap.add_argument("--timing", action="store_true")
     a = ap.parse_args()
     skip = {int(s) for s in a.skip.split(",") if s}
     data = open(a.log, "rb").read()
@@ -90,6 +96,8 @@ def main():
         acks = nacks = resent = 0
         first_skipped = set()
         nxt = 0
+        first_sent = []
+        last_acked = 0.0
         deadline = time.monotonic() + 60
         while len(acked) < len(blocks):
             if time.monotonic() > deadline:
@@ -98,12 +106,15 @@ def main():
 
             def send(s):
                 sent_at[s] = time.monotonic()
+                if not first_sent:
+                    first_sent.append(sent_at[s])
                 conn.mav.remote_log_data_block_send(client[0], client[1], s, blocks[s])
 
             if a.vanish_after and nxt >= a.vanish_after:
                 print("vanished", flush=True)
                 return
-            while nxt < len(blocks) and len([s for s in sent_at if s not in acked]) < a.window:
+            # sent_at holds the blocks sent (or skipped) and not yet ACKed.
+            while nxt < len(blocks) and len(sent_at) < a.window:
                 if nxt in skip and nxt not in first_skipped:
                     first_skipped.add(nxt)
                     sent_at[nxt] = now
@@ -111,7 +122,7 @@ def main():
                     send(nxt)
                 nxt += 1
             for s, t in list(sent_at.items()):
-                if s not in acked and now - t > 1.0:
+                if now - t > 1.0:
                     send(s)
                     resent += 1
             for m in statuses(0.02):
@@ -119,7 +130,10 @@ def main():
                     continue
                 if m.status == 1:
                     acks += 1
+                    if m.seqno not in acked:
+                        last_acked = time.monotonic()
                     acked.add(m.seqno)
+                    sent_at.pop(m.seqno, None)
                 else:
                     nacks += 1
                     nacked.append(m.seqno)
@@ -144,6 +158,8 @@ def main():
             ),
             flush=True,
         )
+        if a.timing:
+            print("stream %d %.6f %.6f" % (flight, first_sent[0], last_acked), flush=True)
         # Disarmed a while between flights.
         end = time.monotonic() + 0.5
         while time.monotonic() < end:
