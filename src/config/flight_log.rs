@@ -6,7 +6,7 @@
 use super::Span;
 use super::ast::{Ast, FlightLogSetting};
 use super::diagnostic::Diagnostic;
-use super::values::ranged;
+use super::values::{ranged, ranged_bytes};
 use crate::address::Address;
 use crate::recording::FilePattern;
 
@@ -149,7 +149,7 @@ pub(crate) fn check(
                 }
             }
             FlightLogSetting::MinFreeBytes(v) => {
-                match ranged(ast.text(v), 0, u64::MAX, "min_free_bytes") {
+                match ranged_bytes(ast.text(v), 0, u64::MAX, "min_free_bytes") {
                     Ok(n) => log.min_free_bytes = n,
                     Err(m) => fail(Diagnostic::new(v, m)),
                 }

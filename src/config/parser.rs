@@ -516,11 +516,11 @@ impl<'a> Parser<'a> {
         let setting = match word {
             "link_bytes" => {
                 self.c.word();
-                QueueSetting::LinkBytes(self.number(MESSAGE)?)
+                QueueSetting::LinkBytes(self.bytes(MESSAGE)?)
             }
             "total_bytes" => {
                 self.c.word();
-                QueueSetting::TotalBytes(self.number(MESSAGE)?)
+                QueueSetting::TotalBytes(self.bytes(MESSAGE)?)
             }
             _ => return Err(unsupported(span, word, QUEUE_STATEMENTS)),
         };
@@ -587,7 +587,7 @@ impl<'a> Parser<'a> {
             }
             "min_free_bytes" => {
                 self.c.word();
-                FlightLogSetting::MinFreeBytes(self.number(BYTES)?)
+                FlightLogSetting::MinFreeBytes(self.bytes(BYTES)?)
             }
             _ => return Err(unsupported(span, word, FLIGHT_LOG_STATEMENTS)),
         };
@@ -637,7 +637,7 @@ impl<'a> Parser<'a> {
                 }
                 "max_file_bytes" => {
                     self.c.word();
-                    RecordSetting::MaxFileBytes(self.number(BYTES)?)
+                    RecordSetting::MaxFileBytes(self.bytes(BYTES)?)
                 }
                 "max_files" => {
                     self.c.word();
@@ -645,7 +645,7 @@ impl<'a> Parser<'a> {
                 }
                 "min_free_bytes" => {
                     self.c.word();
-                    RecordSetting::MinFreeBytes(self.number(BYTES)?)
+                    RecordSetting::MinFreeBytes(self.bytes(BYTES)?)
                 }
                 "only" => {
                     self.c.word();
@@ -933,6 +933,19 @@ impl<'a> Parser<'a> {
             span: Span::new(start, octets[3].end),
             octets: Some(octets),
         })
+    }
+
+    /// A number of bytes: a whole word of digits, optionally ending in `K`, `M`, `G` or
+    /// `T` (the semantics read it).
+    fn bytes(&mut self, message: &str) -> Result<Span> {
+        let at = self.c.expected_at();
+        match self.c.peek_word() {
+            Some((span, w)) if super::values::looks_like_bytes(w) => {
+                self.c.word();
+                Ok(span)
+            }
+            _ => Err(self.value_error(at, message)),
+        }
     }
 
     /// An unsigned number written as a whole word of digits.

@@ -6,7 +6,7 @@ use super::Span;
 use super::ast::{Ast, RecordSetting};
 use super::diagnostic::Diagnostic;
 use super::model::{Condition, Recording};
-use super::values::ranged;
+use super::values::{ranged, ranged_bytes};
 use crate::recording::pattern::{MAX_SUFFIX, NAME_MAX};
 use crate::recording::{FilePattern, Manifest};
 
@@ -21,30 +21,41 @@ pub(crate) fn check(
 ) -> Option<Recording> {
     let mut record = Recording::with_defaults();
     let mut ok = true;
-    let mut number =
-        |span: Span, min: u64, max: u64, what: &str| match ranged(ast.text(span), min, max, what) {
+    // A count, or a number of bytes (which may end in K, M, G or T).
+    let mut number = |span: Span, min: u64, max: u64, what: &str, bytes: bool| {
+        let read = if bytes { ranged_bytes } else { ranged };
+        match read(ast.text(span), min, max, what) {
             Ok(v) => Some(v),
             Err(message) => {
                 errors.push(Diagnostic::new(span, message));
                 None
             }
-        };
+        }
+    };
     let mut path = None;
     for s in settings {
         match s {
             RecordSetting::Path(span) => path = Some(*span),
             RecordSetting::MaxFileBytes(span) => {
-                match number(*span, Recording::MIN_FILE_BYTES, u64::MAX, "max_file_bytes") {
+                match number(
+                    *span,
+                    Recording::MIN_FILE_BYTES,
+                    u64::MAX,
+                    "max_file_bytes",
+                    true,
+                ) {
                     Some(v) => record.max_file_bytes = v,
                     None => ok = false,
                 }
             }
-            RecordSetting::MaxFiles(span) => match number(*span, 0, u32::MAX.into(), "max_files") {
-                Some(v) => record.max_files = u32::try_from(v).unwrap_or(u32::MAX),
-                None => ok = false,
-            },
+            RecordSetting::MaxFiles(span) => {
+                match number(*span, 0, u32::MAX.into(), "max_files", false) {
+                    Some(v) => record.max_files = u32::try_from(v).unwrap_or(u32::MAX),
+                    None => ok = false,
+                }
+            }
             RecordSetting::MinFreeBytes(span) => {
-                match number(*span, 0, u64::MAX, "min_free_bytes") {
+                match number(*span, 0, u64::MAX, "min_free_bytes", true) {
                     Some(v) => record.min_free_bytes = v,
                     None => ok = false,
                 }

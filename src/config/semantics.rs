@@ -417,8 +417,8 @@ impl<'a> Checker<'a, '_> {
         let (min, max) = (QueueBounds::MIN_BYTES, QueueBounds::MAX_BYTES);
         let max = max.min(u64::try_from(usize::MAX).unwrap_or(u64::MAX));
         let text = self.text(span);
-        match text.parse::<u64>() {
-            Ok(v) if (min..=max).contains(&v) => usize::try_from(v).ok(),
+        match super::values::byte_count(text) {
+            Some(v) if (min..=max).contains(&v) => usize::try_from(v).ok(),
             _ => {
                 self.error(
                     Diagnostic::new(

@@ -32,6 +32,41 @@ pub(super) fn interface_signing(
     }
 }
 
+/// True if `word` is written as a number of bytes: digits, then at most one of `K`,
+/// `M`, `G`, `T` (its value may still be out of range: [`byte_count`] says).
+pub(super) fn looks_like_bytes(word: &str) -> bool {
+    let digits = word.strip_suffix(['K', 'M', 'G', 'T']).unwrap_or(word);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// A number of bytes as written: decimal digits, optionally followed by `K`, `M`, `G` or
+/// `T` for 1024, 1024², 1024³ or 1024⁴ bytes (as systemd reads sizes); `None` for
+/// anything else or a value beyond `u64`.
+pub(super) fn byte_count(text: &str) -> Option<u64> {
+    let (digits, scale) = match text.as_bytes().last()? {
+        b'K' => (&text[..text.len() - 1], 1u64 << 10),
+        b'M' => (&text[..text.len() - 1], 1 << 20),
+        b'G' => (&text[..text.len() - 1], 1 << 30),
+        b'T' => (&text[..text.len() - 1], 1 << 40),
+        _ => (text, 1),
+    };
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse::<u64>().ok()?.checked_mul(scale)
+}
+
+/// `text` as a number of bytes ([`byte_count`]) within `min..=max`, or the error text
+/// naming `what`.
+pub(super) fn ranged_bytes(text: &str, min: u64, max: u64, what: &str) -> Result<u64, String> {
+    match byte_count(text) {
+        Some(v) if (min..=max).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "{what} ({text}) is outside of the allowed range ({min} - {max})"
+        )),
+    }
+}
+
 /// `text` as a decimal number within `min..=max`, or the error text naming `what`.
 pub(super) fn ranged(text: &str, min: u64, max: u64, what: &str) -> Result<u64, String> {
     match text.parse::<u64>() {

@@ -106,7 +106,7 @@ fn errors_are_located() {
             "f:2:1: only one 'flight_log' block is allowed",
         ),
         (
-            "flight_log { min_free_bytes 100M; }",
+            "flight_log { min_free_bytes 100MB; }",
             "f:1:29: expected a valid number of bytes",
         ),
     ] {
