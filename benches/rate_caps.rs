@@ -14,6 +14,9 @@
 //! report gives medians, the ratio of medians and the median of each round's ratio (two
 //! batches measured back to back meet nearly the same load from other processes, so
 //! that one is swayed less by load that drifts during the run).
+//!
+//! `RATE_CAPS_ONLY=without` (or `with`) runs one variant alone, for a cache profiler:
+//! `RATE_CAPS_ONLY=with valgrind --tool=cachegrind target/release/deps/rate_caps-* --bench`.
 
 mod common;
 
@@ -104,6 +107,16 @@ fn main() {
         ),
     ];
     let mut out = Output::default();
+    let only = std::env::var("RATE_CAPS_ONLY").ok();
+    if let Some(only) = only {
+        let i = usize::from(only == "with");
+        let mut t: Vec<Duration> = (0..rounds)
+            .map(|_| run(&mut variants[i].1, &frames, &mut out).0)
+            .collect();
+        let ns = common::median(&mut t).as_secs_f64() * 1e9 / BATCH as f64;
+        println!("  {} alone  {ns:>8.0} ns/decision", variants[i].0);
+        return;
+    }
     let mut times = vec![Vec::with_capacity(rounds); variants.len()];
     for _ in 0..rounds {
         for (i, (name, s)) in variants.iter_mut().enumerate() {
