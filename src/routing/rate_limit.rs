@@ -11,17 +11,21 @@
 //!
 //! The table is bounded ([`RATE_TABLE_ENTRIES`] streams in sets of 4, each set one
 //! 64-byte cache line). A stream is known by a 64-bit fingerprint of its (link, source,
-//! message id) and lives in one of two sets: first the set of (link / 2, source,
-//! message id), so that the streams of one packet on two neighbouring links share a
-//! line and a broadcast to 10 links reads about 5 lines, not 10; when that set is taken
-//! by other pairs, a set of its own, chosen by the fingerprint. (Pairs and the second
-//! choice evict fewer live streams than sets chosen per stream: with 2,000 streams on
-//! 10 links about half as many. Groups of four links filled whole sets, and two groups
-//! meeting in one evicted each other even in a nearly empty table.) A new stream takes an empty slot of
-//! its two sets, else one whose schedule has lapsed (which behaves exactly as an absent
-//! one), or else the place of the one of the eight that is due soonest, counted in
-//! [`RateLimiter::evicted`] (that stream's next packet passes as a first one). A removed link's streams are not swept: link ids are never reused, so
-//! they are never met again, and their places are taken as their schedules lapse.
+//! message id) and lives in one of three sets: first the set of (link / 4, source,
+//! message id), so that the streams of one packet on four neighbouring links share a
+//! line and a broadcast to 10 links reads about 3 lines, not 10; when that set is taken
+//! by other groups, one of two sets of its own, chosen by the fingerprint. (A group
+//! fills a whole set, so with the first choice alone two groups meeting in one set
+//! evicted each other even in a nearly empty table. With the other two, fewer live
+//! streams are evicted than when each stream had one set of its own: of 2,000 streams
+//! on 10 links about 5 instead of 8, of 6,000 about 280 instead of 600.)
+//!
+//! A new stream takes an empty slot of its three sets, else one whose schedule has
+//! lapsed (which behaves exactly as an absent one), or else the place of the one of the
+//! twelve that is due soonest, counted in [`RateLimiter::evicted`] (that stream's next
+//! packet passes as a first one). A removed link's streams are not swept: link ids are
+//! never reused, so they are never met again, and their places are taken as their
+//! schedules lapse.
 //!
 //! Two streams share a schedule only if their fingerprints are equal and they meet in a
 //! set, a chance below one in 2^63 for any two streams.
@@ -110,16 +114,17 @@ impl RateLimiter {
         hash.checked_shr(self.shift).unwrap_or(0) as usize & last
     }
 
-    /// A stream's first choice of set: that of its pair of neighbouring links.
+    /// A stream's first choice of set: that of its group of four neighbouring links.
     #[inline]
     fn group_set(&self, link: LinkId, bits: u64) -> usize {
-        self.index(((link.0 >> 1).rotate_left(48) ^ bits).wrapping_mul(GOLDEN))
+        self.index(((link.0 >> 2).rotate_left(48) ^ bits).wrapping_mul(GOLDEN))
     }
 
-    /// A stream's second choice of set: one of its own, by its fingerprint `tag`.
+    /// A stream's second and third choices of set: two of its own, by (different bits
+    /// of) its fingerprint `tag`.
     #[inline]
-    fn own_set(&self, tag: u64) -> usize {
-        self.index(tag)
+    fn own_sets(&self, tag: u64) -> [usize; 2] {
+        [self.index(tag), self.index(tag.rotate_left(24))]
     }
 
     /// The way of set `set` that holds stream `tag`, if one does.
@@ -146,11 +151,13 @@ impl RateLimiter {
         if let Some(way) = self.find(group, tag) {
             return self.pass(group, way, interval, now);
         }
-        let own = self.own_set(tag);
-        if let Some(way) = self.find(own, tag) {
-            return self.pass(own, way, interval, now);
+        let own = self.own_sets(tag);
+        for set in own {
+            if let Some(way) = self.find(set, tag) {
+                return self.pass(set, way, interval, now);
+            }
         }
-        self.insert([group, own], tag, interval, now);
+        self.insert([group, own[0], own[1]], tag, interval, now);
         true
     }
 
@@ -171,10 +178,11 @@ impl RateLimiter {
         true
     }
 
-    /// Starts stream `tag` at `now` in one of `sets`: in an empty slot, else a lapsed
-    /// one, else in place of the one due soonest (counted as evicted).
+    /// Starts stream `tag` at `now` in one of `sets` (in that order of preference): in an
+    /// empty slot, else a lapsed one, else in place of the one due soonest (counted as
+    /// evicted).
     #[inline(never)]
-    fn insert(&mut self, sets: [usize; 2], tag: u64, interval: u64, now: u64) {
+    fn insert(&mut self, sets: [usize; 3], tag: u64, interval: u64, now: u64) {
         let places = sets
             .into_iter()
             .flat_map(|s| (0..WAYS).map(move |w| (s, w)));
@@ -267,7 +275,7 @@ mod tests {
     fn streams_are_apart() {
         let mut l = RateLimiter::default();
         let i = ms(1000);
-        // Links 0 and 1 share a set; 2 to 4 are in others.
+        // Links 0 to 3 share a set; 4 is in another.
         for link in 0..5 {
             assert!(l.allow(LinkId(link), Address::new(1, 1), 30, i, 0));
         }
@@ -310,7 +318,7 @@ mod tests {
     #[test]
     fn groups_that_meet_in_a_set_do_not_evict_each_other() {
         // 1,000 streams (100 scattered senders and message ids on 10 links) in a table
-        // of 8,192: pairs of links meet in some sets, and move on to sets of their own.
+        // of 8,192: groups of links meet in some sets, and move on to sets of their own.
         // (With the first choice alone, about 50 would be evicted.)
         let mut l = RateLimiter::default();
         let i = ms(500);
