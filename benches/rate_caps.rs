@@ -11,7 +11,12 @@
 //! queue the same packets.
 //!
 //! Run: `cargo bench --bench rate_caps`. Variants are interleaved round by round; the
-//! report gives medians and the ratio of medians.
+//! report gives medians, the ratio of medians and the median of each round's ratio (two
+//! batches measured back to back meet nearly the same load from other processes, so
+//! that one is swayed less by load that drifts during the run).
+//!
+//! `RATE_CAPS_ONLY=without` (or `with`) runs one variant alone, for a cache profiler:
+//! `RATE_CAPS_ONLY=with valgrind --tool=cachegrind target/release/deps/rate_caps-* --bench`.
 
 mod common;
 
@@ -102,6 +107,16 @@ fn main() {
         ),
     ];
     let mut out = Output::default();
+    let only = std::env::var("RATE_CAPS_ONLY").ok();
+    if let Some(only) = only {
+        let i = usize::from(only == "with");
+        let mut t: Vec<Duration> = (0..rounds)
+            .map(|_| run(&mut variants[i].1, &frames, &mut out).0)
+            .collect();
+        let ns = common::median(&mut t).as_secs_f64() * 1e9 / BATCH as f64;
+        println!("  {} alone  {ns:>8.0} ns/decision", variants[i].0);
+        return;
+    }
     let mut times = vec![Vec::with_capacity(rounds); variants.len()];
     for _ in 0..rounds {
         for (i, (name, s)) in variants.iter_mut().enumerate() {
@@ -114,6 +129,12 @@ fn main() {
             times[i].push(t);
         }
     }
+    let mut ratios: Vec<f64> = times[1]
+        .iter()
+        .zip(&times[0])
+        .map(|(c, u)| c.as_secs_f64() / u.as_secs_f64())
+        .collect();
+    ratios.sort_unstable_by(f64::total_cmp);
     let per: Vec<f64> = times
         .iter_mut()
         .map(|t| common::median(t).as_secs_f64() * 1e9 / BATCH as f64)
@@ -125,6 +146,10 @@ fn main() {
         println!("  {name}  {ns:>8.0} ns/decision");
     }
     println!("  ratio with rates / without: {:.2}x", per[1] / per[0]);
+    println!(
+        "  median of the rounds' ratios: {:.2}x",
+        ratios[ratios.len() / 2]
+    );
     let counts = variants[1].1.learned.router.filter_counts();
     let limited: u64 = counts.rules.iter().map(|r| r.rate_limited).sum();
     assert_eq!(limited, 0, "every packet passes its cap");

@@ -1,6 +1,8 @@
 //! A bounded memo of filter verdicts keyed by (message id, source, destination, signed),
 //! each with the number of its rule walk's trace (see `super::trace`) so that answers
-//! from the memo still count the rules that matched.
+//! from the memo still count the rules that matched, and the rank of the deciding
+//! rule's `with rate` (see [`super::Cap`]) so that they give the cap without a second
+//! look-up.
 //!
 //! Direct-mapped: each key hashes to one slot, and a new key overwrites whatever was
 //! there. Memory is fixed at construction (16 bytes a slot); a lookup is one multiply,
@@ -30,26 +32,42 @@ pub struct CacheStats {
     pub misses: u64,
 }
 
-/// Set in a slot's `trace` word when the verdict is reject (trace numbers stay far below).
+/// Set in a slot's `word` when the verdict is reject.
 const REJECT: u32 = 1 << 31;
+/// The low bits of a slot's `word` that hold the trace number.
+const TRACE_BITS: u32 = 12;
+const TRACE_MASK: u32 = (1 << TRACE_BITS) - 1;
+/// The largest cap rank a slot holds (the bits between the trace number and [`REJECT`]).
+pub(crate) const MAX_RANK: u32 = (REJECT >> TRACE_BITS) - 1;
+// Every interned trace's number fits its bits.
+const _: () = assert!(super::trace::MAX_TRACES <= 1 << TRACE_BITS);
 
 #[derive(Debug, Clone, Copy)]
 struct Slot {
     key: u64,
     /// The accept priority (0 for a reject).
     priority: i32,
-    /// The trace number, with [`REJECT`] set for a reject.
-    trace: u32,
+    /// [`REJECT`] for a reject, the cap rank (bits 12 to 30) and the trace number (bits
+    /// 0 to 11).
+    word: u32,
 }
 
 impl Slot {
     fn verdict(self) -> Verdict {
-        if self.trace & REJECT != 0 {
+        if self.word & REJECT != 0 {
             Verdict::Reject
         } else {
             Verdict::Accept(self.priority)
         }
     }
+}
+
+/// A remembered verdict with its trace number and cap rank (0 for none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Memo {
+    pub(crate) verdict: Verdict,
+    pub(crate) trace: u32,
+    pub(crate) rank: u32,
 }
 
 /// Fixed-size, direct-mapped verdict memo.
@@ -71,7 +89,7 @@ impl VerdictCache {
         let empty = Slot {
             key: 0,
             priority: 0,
-            trace: REJECT,
+            word: REJECT,
         };
         VerdictCache {
             slots: vec![empty; n].into_boxed_slice(),
@@ -107,10 +125,10 @@ impl VerdictCache {
         signed: bool,
     ) -> Option<Verdict> {
         self.get_traced(message_id, source, dest, signed)
-            .map(|(v, _)| v)
+            .map(|m| m.verdict)
     }
 
-    /// The remembered verdict and its trace number, if any.
+    /// The remembered verdict with its trace number and cap rank, if any.
     #[inline]
     pub(crate) fn get_traced(
         &mut self,
@@ -118,13 +136,17 @@ impl VerdictCache {
         source: Address,
         dest: Address,
         signed: bool,
-    ) -> Option<(Verdict, u32)> {
+    ) -> Option<Memo> {
         let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
         match self.slots.get(i) {
             Some(s) if s.key == key => {
                 self.stats.hits += 1;
-                Some((s.verdict(), s.trace & !REJECT))
+                Some(Memo {
+                    verdict: s.verdict(),
+                    trace: s.word & TRACE_MASK,
+                    rank: (s.word & !REJECT) >> TRACE_BITS,
+                })
             }
             _ => {
                 self.stats.misses += 1;
@@ -133,7 +155,8 @@ impl VerdictCache {
         }
     }
 
-    /// Remembers `verdict` (with trace number 0), replacing the slot's previous entry.
+    /// Remembers `verdict` (with trace number 0 and no cap), replacing the slot's
+    /// previous entry.
     #[inline]
     pub fn insert(
         &mut self,
@@ -143,11 +166,17 @@ impl VerdictCache {
         signed: bool,
         verdict: Verdict,
     ) {
-        self.insert_traced(message_id, source, dest, signed, verdict, 0);
+        let memo = Memo {
+            verdict,
+            trace: 0,
+            rank: 0,
+        };
+        self.insert_traced(message_id, source, dest, signed, memo);
     }
 
-    /// Remembers `verdict` and its trace number `trace` (below 2^31), replacing the
-    /// slot's previous entry.
+    /// Remembers `memo`, replacing the slot's previous entry. Its trace number must be
+    /// below [`super::trace::MAX_TRACES`] and its rank at most [`MAX_RANK`] (0 for a
+    /// reject); a memo beyond them is not remembered.
     #[inline]
     pub(crate) fn insert_traced(
         &mut self,
@@ -155,20 +184,22 @@ impl VerdictCache {
         source: Address,
         dest: Address,
         signed: bool,
-        verdict: Verdict,
-        trace: u32,
+        memo: Memo,
     ) {
+        if memo.trace > TRACE_MASK || memo.rank > MAX_RANK {
+            return;
+        }
         let key = Self::key(message_id, source, dest, signed);
         let i = self.index(key);
-        let (priority, trace) = match verdict {
-            Verdict::Accept(p) => (p, trace & !REJECT),
-            Verdict::Reject => (0, trace | REJECT),
+        let (priority, word) = match memo.verdict {
+            Verdict::Accept(p) => (p, memo.rank << TRACE_BITS | memo.trace),
+            Verdict::Reject => (0, REJECT | memo.trace),
         };
         if let Some(s) = self.slots.get_mut(i) {
             *s = Slot {
                 key,
                 priority,
-                trace,
+                word,
             };
         }
     }
@@ -224,6 +255,31 @@ mod tests {
         // The largest message id does not reach the signed bit.
         c.insert(0xFF_FFFF, a(1, 1), a(2, 2), false, Verdict::Reject);
         assert_eq!(c.get(0xFF_FFFF, a(1, 1), a(2, 2), true), None);
+    }
+
+    #[test]
+    fn trace_and_rank_come_back_as_given() {
+        let mut c = VerdictCache::new(16);
+        let memo = |verdict, trace, rank| Memo {
+            verdict,
+            trace,
+            rank,
+        };
+        let top = memo(Verdict::Accept(-3), TRACE_MASK, MAX_RANK);
+        c.insert_traced(4, a(1, 1), a(2, 2), false, top);
+        assert_eq!(c.get_traced(4, a(1, 1), a(2, 2), false), Some(top));
+        let reject = memo(Verdict::Reject, 5, 0);
+        c.insert_traced(4, a(1, 1), a(2, 2), false, reject);
+        assert_eq!(c.get_traced(4, a(1, 1), a(2, 2), false), Some(reject));
+        // Beyond the bits: not remembered (the caller walks again).
+        c.insert_traced(
+            5,
+            a(1, 1),
+            a(2, 2),
+            false,
+            memo(Verdict::Accept(0), 0, MAX_RANK + 1),
+        );
+        assert_eq!(c.get_traced(5, a(1, 1), a(2, 2), false), None);
     }
 
     #[test]

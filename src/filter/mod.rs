@@ -29,7 +29,6 @@ pub(crate) mod trace;
 
 use crate::address::Address;
 use crate::config::Config;
-use std::time::Duration;
 
 pub use cache::{CacheStats, VerdictCache};
 pub use eval::Evaluator;
@@ -54,14 +53,38 @@ impl Verdict {
     }
 }
 
-/// The `with rate` of the rule that accepted a packet: the rule's flat number (for its
-/// `rate_limited` count) and the least time between two packets of one stream.
+/// The `with rate` that holds back a packet a rule accepted, as [`Filter::check_capped`]
+/// gives it: the rank of the rule's interval among the configuration's distinct ones
+/// (1 the shortest, so the loosest; 0 no cap at all), and where the deciding rule can be
+/// found (for its `rate_limited` count). Ranks order as intervals do, so the looser of
+/// two caps is the one of smaller rank, and no cap is looser than any.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Cap {
-    /// The deciding rule's flat number (chains in order, their rules in order).
-    pub rule: u32,
-    /// The interval of its rate.
-    pub interval: Duration,
+    rank: u32,
+    /// The trace number of the walk that decided, or [`DIRECT`] and the deciding rule's
+    /// flat number when that trace was not interned.
+    origin: u32,
+}
+
+/// Set in [`Cap::origin`] when it holds a rule number, not a trace number.
+const DIRECT: u32 = 1 << 31;
+
+impl Cap {
+    /// No cap: the packet passes as it is.
+    pub const NONE: Cap = Cap { rank: 0, origin: 0 };
+
+    /// Whether there is a cap.
+    #[inline]
+    pub fn is_capped(self) -> bool {
+        self.rank != 0
+    }
+
+    /// The looser of `self` and `other`: no cap beats any, else the shorter interval;
+    /// `self` on a tie.
+    #[inline]
+    pub fn looser(self, other: Cap) -> Cap {
+        if other.rank < self.rank { other } else { self }
+    }
 }
 
 /// The configuration's chains and default action, with a memo of past verdicts and
@@ -71,20 +94,34 @@ pub struct Filter {
     evaluator: Evaluator,
     cache: VerdictCache,
     traces: Traces,
-    /// The rate interval of each rule by flat number; empty when no rule has a rate.
-    caps: Box<[Option<Duration>]>,
-    /// The cap of each interned trace (by trace number: that of its deciding rule), so
-    /// that a memoized verdict finds its cap with one load.
-    trace_caps: Vec<Option<Cap>>,
+    /// The cap rank of each rule by flat number (0: no rate); empty when no rule has a
+    /// rate.
+    ranks: Box<[u32]>,
+    /// The interval of each rank in nanoseconds, shortest first (index 0, no cap, holds 0).
+    intervals: Box<[u64]>,
 }
 
-/// The rate intervals of `config`'s rules by flat number; empty when none has a rate.
-fn caps_of(config: &Config) -> Box<[Option<Duration>]> {
+/// The cap ranks of `config`'s rules by flat number and the interval of each rank (see
+/// [`Cap`]); both empty when no rule has a rate.
+fn ranks_of(config: &Config) -> (Box<[u32]>, Box<[u64]>) {
     let rules = config.chains.iter().flat_map(|c| &c.rules);
-    if rules.clone().all(|r| r.rate.is_none()) {
-        return Box::new([]);
+    let nanos = |r: &crate::config::Rule| {
+        r.rate
+            .map(|r| u64::try_from(r.interval().as_nanos()).unwrap_or(u64::MAX))
+    };
+    let mut intervals: Vec<u64> = rules.clone().filter_map(nanos).collect();
+    if intervals.is_empty() {
+        return (Box::new([]), Box::new([]));
     }
-    rules.map(|r| r.rate.map(|r| r.interval())).collect()
+    intervals.push(0);
+    intervals.sort_unstable();
+    intervals.dedup();
+    let rank = |n: u64| {
+        let at = intervals.binary_search(&n).unwrap_or(0);
+        u32::try_from(at).unwrap_or(u32::MAX)
+    };
+    let ranks = rules.map(|r| nanos(r).map_or(0, rank)).collect();
+    (ranks, intervals.into_boxed_slice())
 }
 
 impl Filter {
@@ -96,12 +133,13 @@ impl Filter {
     /// Builds the filter of `config` with a cache of (at least) `slots` entries; 0 turns
     /// memoization off.
     pub fn with_cache_slots(config: &Config, slots: usize) -> Self {
+        let (ranks, intervals) = ranks_of(config);
         Filter {
             evaluator: Evaluator::new(config),
             cache: VerdictCache::new(slots),
             traces: Traces::default(),
-            caps: caps_of(config),
-            trace_caps: Vec::new(),
+            ranks,
+            intervals,
         }
     }
 
@@ -135,10 +173,11 @@ impl Filter {
         self.check_capped(message_id, source, dest, signed, len).0
     }
 
-    /// As [`Filter::check_len`], with the [`Cap`] of the rule that accepted (`None` for a
-    /// reject, an accept by a rule without `with rate`, or by the default action). The
-    /// cap comes from the rule that decided, so a memoized verdict gives it too; holding
-    /// packets to it is the caller's (it is state that changes with every packet).
+    /// As [`Filter::check_len`], with the [`Cap`] of the rule that accepted
+    /// ([`Cap::NONE`] for a reject, an accept by a rule without `with rate`, or by the
+    /// default action). The cap comes from the rule that decided, so a memoized verdict
+    /// gives it too (from the same memo slot); holding packets to it is the caller's (it
+    /// is state that changes with every packet).
     #[inline]
     pub fn check_capped(
         &mut self,
@@ -147,49 +186,64 @@ impl Filter {
         dest: Address,
         signed: bool,
         len: usize,
-    ) -> (Verdict, Option<Cap>) {
-        if let Some((v, trace)) = self.cache.get_traced(message_id, source, dest, signed) {
-            self.traces.hit(trace, len);
-            let cap = self.trace_caps.get(trace as usize).copied().flatten();
-            return (v, cap);
+    ) -> (Verdict, Cap) {
+        if let Some(m) = self.cache.get_traced(message_id, source, dest, signed) {
+            self.traces.hit(m.trace, len);
+            let cap = Cap {
+                rank: m.rank,
+                origin: m.trace,
+            };
+            return (m.verdict, cap);
         }
-        let v = self.evaluator.evaluate(message_id, source, dest, signed);
+        let verdict = self.evaluator.evaluate(message_id, source, dest, signed);
         let (matched, decider) = self.evaluator.trace();
-        match self.traces.intern(matched, decider) {
+        let rank = match (verdict, decider) {
+            (Verdict::Accept(_), Some(rule)) => self.ranks.get(rule as usize).copied().unwrap_or(0),
+            _ => 0,
+        };
+        let origin = match self.traces.intern(matched, decider) {
             Some(trace) => {
                 self.traces.hit(trace, len);
+                let memo = cache::Memo {
+                    verdict,
+                    trace,
+                    rank,
+                };
                 self.cache
-                    .insert_traced(message_id, source, dest, signed, v, trace);
-                if !self.caps.is_empty() && trace as usize == self.trace_caps.len() {
-                    self.trace_caps.push(self.cap(decider));
-                }
+                    .insert_traced(message_id, source, dest, signed, memo);
+                trace
             }
             // The trace table is full: counted directly, and walked again next time.
-            None => self.traces.hit_direct(matched, decider, len),
-        }
-        let cap = match v {
-            Verdict::Accept(_) => self.cap(decider),
-            Verdict::Reject => None,
+            None => {
+                self.traces.hit_direct(matched, decider, len);
+                DIRECT | decider.unwrap_or(0)
+            }
         };
-        (v, cap)
+        (verdict, Cap { rank, origin })
     }
 
-    /// The cap of rule `decider` (only `accept` rules have one).
+    /// The interval of `cap` in nanoseconds (0 for no cap).
     #[inline]
-    fn cap(&self, decider: Option<u32>) -> Option<Cap> {
-        let rule = decider?;
-        let interval = (*self.caps.get(rule as usize)?)?;
-        Some(Cap { rule, interval })
+    pub fn interval_nanos(&self, cap: Cap) -> u64 {
+        self.intervals.get(cap.rank as usize).copied().unwrap_or(0)
     }
 
     /// Whether any rule has a `with rate`.
     pub fn has_caps(&self) -> bool {
-        !self.caps.is_empty()
+        !self.ranks.is_empty()
     }
 
-    /// Counts one packet that rule `rule` accepted for a link but its rate held back.
-    pub fn count_rate_limited(&mut self, rule: u32) {
-        self.traces.rate_limited(rule);
+    /// Counts one packet that the rule of `cap` accepted for a link but its rate held
+    /// back.
+    pub fn count_rate_limited(&mut self, cap: Cap) {
+        let rule = if cap.origin & DIRECT != 0 {
+            Some(cap.origin & !DIRECT)
+        } else {
+            self.traces.decider(cap.origin)
+        };
+        if let Some(rule) = rule {
+            self.traces.rate_limited(rule);
+        }
     }
 
     /// Per-rule counts (by flat rule number: chains in configuration order, their rules

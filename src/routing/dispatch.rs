@@ -13,9 +13,9 @@ pub enum Decision {
     /// or the packet targets a system the link does not know.
     Silent,
     /// The filter accepted it for at least one candidate address: the highest priority,
-    /// and the `with rate` cap that holds it back (`None` when any accepting rule has no
-    /// rate; else the most generous of their caps).
-    Accept(i32, Option<Cap>),
+    /// and the `with rate` cap that holds it back ([`Cap::NONE`] when any accepting rule
+    /// has no rate; else the most generous of their caps).
+    Accept(i32, Cap),
     /// The filter rejected it for every candidate address, or a broadcast met an empty pool.
     Reject,
 }
@@ -103,25 +103,16 @@ fn best(
     signed: bool,
     len: usize,
 ) -> Decision {
-    let mut best: Option<(i32, Option<Cap>)> = None;
+    let mut best: Option<(i32, Cap)> = None;
     for dest in candidates {
         if let (Verdict::Accept(p), cap) =
             filter.check_capped(message_id, source, dest, signed, len)
         {
             best = Some(match best {
                 None => (p, cap),
-                Some((b, c)) => (b.max(p), looser(c, cap)),
+                Some((b, c)) => (b.max(p), c.looser(cap)),
             });
         }
     }
     best.map_or(Decision::Reject, |(p, c)| Decision::Accept(p, c))
-}
-
-/// The looser of two caps: none beats any, else the shorter interval.
-#[inline]
-fn looser(a: Option<Cap>, b: Option<Cap>) -> Option<Cap> {
-    match (a, b) {
-        (Some(a), Some(b)) => Some(if b.interval < a.interval { b } else { a }),
-        _ => None,
-    }
 }

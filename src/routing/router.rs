@@ -247,7 +247,7 @@ impl Router {
         let link = self.links.remove(i);
         self.ids.remove(i);
         self.queued_bytes -= link.queue.bytes();
-        self.limiter.forget_link(id);
+        // Its rate schedules are not swept: they lapse (see `rate_limit`).
         self.unindex(&[id]);
         true
     }
@@ -312,6 +312,8 @@ impl Router {
         let summary = PacketSummary::of(frame);
 
         let len = frame.as_bytes().len();
+        // The clock for rate caps, read once for every link.
+        let now_nanos = u64::try_from(now.as_nanos()).unwrap_or(u64::MAX);
         self.sources.count(src, message_id);
         self.sequences.count(src, frame.seq());
         self.links[si].counters.received(len);
@@ -361,12 +363,16 @@ impl Router {
                 Decision::Silent => {}
                 Decision::Accept(priority, cap) => {
                     routed = true;
-                    if let Some(cap) = cap
-                        && !self
-                            .limiter
-                            .allow(link.id(), src, message_id, cap.interval, now)
+                    if cap.is_capped()
+                        && !self.limiter.allow(
+                            link.id(),
+                            src,
+                            message_id,
+                            self.filter.interval_nanos(cap),
+                            now_nanos,
+                        )
                     {
-                        self.filter.count_rate_limited(cap.rule);
+                        self.filter.count_rate_limited(cap);
                         continue;
                     }
                     forwarded = true;
@@ -504,9 +510,6 @@ impl Router {
             }
         });
         self.queued_bytes -= freed;
-        for &id in &removed {
-            self.limiter.forget_link(id);
-        }
         if !removed.is_empty() {
             self.ids = self.links.iter().map(Link::id).collect();
         }

@@ -125,6 +125,29 @@ fn an_uncapped_accepting_rule_for_another_address_on_the_link_wins() {
 }
 
 #[test]
+fn of_two_capped_rules_for_addresses_on_one_link_the_more_generous_holds_and_counts() {
+    // The satellite link also reaches 10.1, which takes ATTITUDE at 4/s: a broadcast
+    // goes to the link at 4/s, whichever address the filter tries first.
+    let conf = "chain default {
+        accept with rate 1/s if ATTITUDE to 254.190;
+        accept with rate 4/s if ATTITUDE to 10.1;
+        accept;
+    }";
+    let mut net = net_with(conf, RouterOptions::default());
+    net.heartbeat("sat", "10.1");
+    pop_all(&mut net, "lan");
+    for k in 0..500 {
+        net.now = Timestamp::from_millis(10_000 + k * 20);
+        net.send("v1", "ATTITUDE", "1.1", None);
+    }
+    assert_eq!(pop_all(&mut net, "sat").len(), 40, "4/s over 10 s");
+    assert_eq!(pop_all(&mut net, "lan").len(), 500);
+    let counts = net.router.filter_counts();
+    assert_eq!(counts.rules[0].rate_limited, 0);
+    assert_eq!(counts.rules[1].rate_limited, 460);
+}
+
+#[test]
 fn caps_hold_inside_called_chains_and_with_priorities_in_either_order() {
     let conf = "chain default {
         call sat if to 254.0/8;
