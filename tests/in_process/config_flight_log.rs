@@ -1,27 +1,9 @@
 //! The `flight_log` block in the configuration language: `--ast` in the original's
 //! style, the model it loads to with its defaults, and located errors.
 
+use super::config_text::{first_error, tree};
 use mavtables::address::Address;
-use mavtables::config::{self, FlightLog, FlightLogMode, FlightLogProtocol, parse, print_tree};
-
-fn tree(src: &str) -> String {
-    match parse(src) {
-        Ok(ast) => print_tree(&ast),
-        Err(d) => panic!("{}", d.render("t", src)),
-    }
-}
-
-fn first_error(src: &str) -> String {
-    match config::load(src) {
-        Ok(_) => panic!("expected an error for {src:?}"),
-        Err(e) => e[0]
-            .render("f", src)
-            .lines()
-            .next()
-            .unwrap_or_default()
-            .to_string(),
-    }
-}
+use mavtables::config::{self, FlightLog, FlightLogMode, FlightLogProtocol};
 
 #[test]
 fn the_block_prints_like_the_others() {

@@ -3,26 +3,8 @@
 
 use std::time::Duration;
 
-use mavtables::config::{self, Heartbeat, InterfaceGroup, parse, print_tree};
-
-fn tree(src: &str) -> String {
-    match parse(src) {
-        Ok(ast) => print_tree(&ast),
-        Err(d) => panic!("{}", d.render("t", src)),
-    }
-}
-
-fn first_error(src: &str) -> String {
-    match config::load(src) {
-        Ok(_) => panic!("expected an error for {src:?}"),
-        Err(e) => e[0]
-            .render("f", src)
-            .lines()
-            .next()
-            .unwrap_or_default()
-            .to_string(),
-    }
-}
+use super::config_text::{first_error, tree};
+use mavtables::config::{self, Heartbeat, InterfaceGroup};
 
 #[test]
 fn the_ast_prints_each_statement_with_its_raw_value() {

@@ -1,14 +1,8 @@
 //! `with rate N/UNIT` in the configuration language: `--ast`, the model, the rule text
 //! the statistics show, and located errors.
 
-use mavtables::config::{self, Rate, RateUnit, parse, print_tree};
-
-fn tree(src: &str) -> String {
-    match parse(src) {
-        Ok(ast) => print_tree(&ast),
-        Err(d) => panic!("{}", d.render("t", src)),
-    }
-}
+use super::config_text::tree;
+use mavtables::config::{self, Rate, RateUnit};
 
 fn first_error(src: &str) -> String {
     let errors = match config::load(src) {

@@ -2,19 +2,8 @@
 //! plain digits or digits with a `K`, `M`, `G` or `T` suffix (binary multiples), printed
 //! by `--ast` as written, and located errors for anything else.
 
-use mavtables::config::{self, parse, print_tree};
-
-fn first_error(src: &str) -> String {
-    match config::load(src) {
-        Ok(_) => panic!("expected an error for {src:?}"),
-        Err(e) => e[0]
-            .render("f", src)
-            .lines()
-            .next()
-            .unwrap_or_default()
-            .to_string(),
-    }
-}
+use super::config_text::{first_error, tree};
+use mavtables::config;
 
 #[test]
 fn suffixes_are_binary_multiples_in_every_byte_statement() {
@@ -41,9 +30,8 @@ fn suffixes_are_binary_multiples_in_every_byte_statement() {
 
 #[test]
 fn ast_prints_the_size_as_written() {
-    let ast = parse("flight_log { min_free_bytes 100M; }").expect("parses");
     assert_eq!(
-        print_tree(&ast),
+        tree("flight_log { min_free_bytes 100M; }"),
         ":001:  flight_log\n:001:  |  min_free_bytes 100M\n"
     );
 }

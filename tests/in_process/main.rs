@@ -16,6 +16,7 @@ mod config_paths;
 mod config_props;
 mod config_rates;
 mod config_sizes;
+mod config_text;
 mod config_websocket;
 mod dialect_crosscheck;
 mod docs_examples;
