@@ -18,13 +18,13 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
-use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant};
+use std::sync::Arc;
+use std::sync::atomic::AtomicU64;
+use std::time::Duration;
 
 use super::manifest::MadeList;
 use super::recorder::local_now;
+use super::writer_thread::{self, WriterThread, add, read};
 use super::{log, sys};
 use crate::config::FlightLog;
 use crate::flight_log::{FlightLogStats, LogWrite, Protocol};
@@ -38,14 +38,14 @@ const QUEUE_BOUND: usize = 16 << 20;
 /// The writer takes the queue at least this often.
 const WRITE_EVERY: Duration = Duration::from_millis(200);
 
-/// Writes waiting for the writer.
+/// Writes waiting for the writer, and the bytes of data they hold.
 #[derive(Default)]
 struct Queue {
     items: Vec<LogWrite>,
     bytes: usize,
-    stop: bool,
 }
 
+/// The counters both sides add to.
 #[derive(Default)]
 struct Counters {
     blocks: AtomicU64,
@@ -55,50 +55,31 @@ struct Counters {
     dropped: AtomicU64,
 }
 
-fn add(counter: &AtomicU64, n: u64) {
-    counter.fetch_add(n, Ordering::Relaxed);
-}
-
-#[derive(Default)]
-struct Shared {
-    queue: Mutex<Queue>,
-    wake: Condvar,
-    done: Mutex<bool>,
-    done_cv: Condvar,
-    counters: Counters,
-    current: Mutex<Option<String>>,
-}
+/// What the loop and the writer share.
+type Shared = writer_thread::Shared<Queue, Counters>;
 
 /// The loop's handle on the writer.
 pub(super) struct FlightLogWriter {
-    shared: Arc<Shared>,
-    writer: Option<JoinHandle<()>>,
+    writer: WriterThread<Queue, Counters>,
     config: FlightLog,
 }
 
 impl FlightLogWriter {
     /// Starts the writer for `config`.
     pub(super) fn start(config: &FlightLog) -> FlightLogWriter {
-        let shared = Arc::new(Shared::default());
-        let writer_shared = shared.clone();
         let cfg = config.clone();
-        let writer = thread::Builder::new()
-            .name("flight-log".into())
-            .spawn(move || {
-                Writer {
-                    config: cfg,
-                    shared: writer_shared,
-                    lists: HashMap::new(),
-                    begun: None,
-                    file: None,
-                    trouble: false,
-                }
-                .run();
-            })
-            .map_err(|e| log::error(&format_args!("flight log: cannot start the writer: {e}")))
-            .ok();
+        let writer = WriterThread::spawn("flight-log", "flight log", move |shared| {
+            Writer {
+                config: cfg,
+                shared,
+                lists: HashMap::new(),
+                begun: None,
+                file: None,
+                trouble: false,
+            }
+            .run();
+        });
         FlightLogWriter {
-            shared,
             writer,
             config: config.clone(),
         }
@@ -111,11 +92,9 @@ impl FlightLogWriter {
 
     /// Queues what the core has for the file.
     pub(super) fn take_from(&mut self, engine: &mut Engine) {
-        let mut q = self
-            .shared
-            .queue
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
+        let shared = self.writer.shared();
+        let mut pending = shared.queue();
+        let q = &mut pending.queued;
         let mut dropped = 0;
         let mut any = false;
         engine.poll_flight_log(&mut |w| {
@@ -130,72 +109,33 @@ impl FlightLogWriter {
             any = true;
         });
         if any && q.items.iter().any(|w| !matches!(w, LogWrite::Data { .. })) {
-            self.shared.wake.notify_one();
+            shared.wake();
         }
-        drop(q);
-        add(&self.shared.counters.dropped, dropped);
+        drop(pending);
+        add(&shared.counters().dropped, dropped);
     }
 
     /// The writer's counters, joined with the core's.
     pub(super) fn stats(&self, engine: &Engine) -> FlightLogStats {
-        let c = &self.shared.counters;
-        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let shared = self.writer.shared();
+        let c = shared.counters();
         let (stream, streaming) = engine.flight_log_counters().unwrap_or_default();
         FlightLogStats {
             stream,
-            blocks_written: get(&c.blocks),
-            bytes_written: get(&c.bytes),
-            files: get(&c.files),
-            removed: get(&c.removed),
-            blocks_dropped_disk: get(&c.dropped),
+            blocks_written: read(&c.blocks),
+            bytes_written: read(&c.bytes),
+            files: read(&c.files),
+            removed: read(&c.removed),
+            blocks_dropped_disk: read(&c.dropped),
             streaming,
-            current_path: self
-                .shared
-                .current
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .clone(),
+            current_path: shared.current(),
         }
     }
 
     /// Lets the writer write what is queued and close its file, waiting at most
     /// `timeout` (a stuck disk cannot hold the exit).
     pub(super) fn finish(&mut self, timeout: Duration) {
-        {
-            let mut q = self
-                .shared
-                .queue
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
-            q.stop = true;
-            self.shared.wake.notify_one();
-        }
-        let Some(writer) = self.writer.take() else {
-            return;
-        };
-        let deadline = Instant::now() + timeout;
-        let mut done = self
-            .shared
-            .done
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        while !*done {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                log::warn(&format_args!(
-                    "flight log: the writer did not finish within {timeout:?}; the last blocks may be lost"
-                ));
-                return;
-            }
-            done = self
-                .shared
-                .done_cv
-                .wait_timeout(done, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        drop(done);
-        let _ = writer.join();
+        self.writer.finish(timeout, "blocks");
     }
 }
 
@@ -239,36 +179,16 @@ impl Writer {
             }
         }
         self.close();
-        let mut done = self
-            .shared
-            .done
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        *done = true;
-        self.shared.done_cv.notify_all();
     }
 
+    /// Waits until writes are due and swaps them into `batch` (emptied); true when the
+    /// loop is stopping.
     fn wait(&self, batch: &mut Vec<LogWrite>) -> bool {
-        let deadline = Instant::now() + WRITE_EVERY;
         let mut q = self
             .shared
-            .queue
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        while !q.stop && q.bytes < QUEUE_BOUND / 4 {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                break;
-            }
-            q = self
-                .shared
-                .wake
-                .wait_timeout(q, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        std::mem::swap(&mut q.items, batch);
-        q.bytes = 0;
+            .wait_due(WRITE_EVERY, |q| q.bytes >= QUEUE_BOUND / 4);
+        std::mem::swap(&mut q.queued.items, batch);
+        q.queued.bytes = 0;
         q.stop
     }
 
@@ -287,7 +207,7 @@ impl Writer {
     }
 
     fn write(&mut self, bytes: &[u8], blocks: u64) {
-        let counters = &self.shared.counters;
+        let counters = self.shared.counters();
         if self.file.is_none() {
             let Some(p) = self.begun else {
                 add(&counters.dropped, blocks);
@@ -311,13 +231,13 @@ impl Writer {
             return;
         }
         let Some(open) = self.file.as_mut() else {
-            add(&self.shared.counters.dropped, blocks);
+            add(&self.shared.counters().dropped, blocks);
             return;
         };
         match open.file.write_all(bytes) {
             Ok(()) => {
                 open.size += bytes.len() as u64;
-                let counters = &self.shared.counters;
+                let counters = self.shared.counters();
                 add(&counters.blocks, blocks);
                 add(&counters.bytes, bytes.len() as u64);
                 if self.trouble {
@@ -335,7 +255,7 @@ impl Writer {
     }
 
     fn dropped(&mut self, blocks: u64, why: &dyn std::fmt::Display) {
-        add(&self.shared.counters.dropped, blocks);
+        add(&self.shared.counters().dropped, blocks);
         if !self.trouble {
             self.trouble = true;
             log::warn(&format_args!(
@@ -436,13 +356,9 @@ impl Writer {
         let files = list.made.recordings();
         let excess = rotation::over_count(&files, max_files, Some(&name));
         list.made.save();
-        add(&self.shared.counters.files, 1);
+        add(&self.shared.counters().files, 1);
         log::warn(&format_args!("flight log: writing {path}"));
-        *self
-            .shared
-            .current
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = Some(path);
+        self.shared.set_current(path);
         self.file = Some(Open {
             file,
             ext,
@@ -464,7 +380,7 @@ impl Writer {
         for name in names {
             let path = list.dir.join(name);
             match fs::remove_file(&path) {
-                Ok(()) => add(&shared.counters.removed, 1),
+                Ok(()) => add(&shared.counters().removed, 1),
                 Err(e) if e.kind() == io::ErrorKind::NotFound => {}
                 Err(e) => {
                     log::warn(&format_args!(

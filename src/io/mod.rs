@@ -13,6 +13,8 @@
 //!   file listing the recordings it created (the only ones it removes);
 //! - `flight_log`: the flight logs streamed from the autopilot, written by a thread of
 //!   their own (sharing the recorder's list of created files and rotation);
+//! - `writer_thread`: what both of those writers' threads share — the queue, the wake-up,
+//!   the bounded wait at exit, the counters and the current path;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
@@ -34,5 +36,6 @@ mod sys;
 mod tcp;
 mod udp;
 mod websocket;
+mod writer_thread;
 
 pub use runtime::run;

@@ -19,12 +19,12 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
-use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::sync::Arc;
+use std::sync::atomic::AtomicU64;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use super::manifest::MadeList;
+use super::writer_thread::{self, WriterThread, add, read};
 use super::{log, sys};
 use crate::capture::tlog::TIMESTAMP_LEN;
 use crate::config::Recording;
@@ -48,7 +48,6 @@ const WRITE_EVERY: Duration = Duration::from_millis(200);
 struct Queue {
     bytes: Vec<u8>,
     lens: Vec<u32>,
-    stop: bool,
 }
 
 /// The counters both sides add to.
@@ -64,32 +63,18 @@ struct Counters {
 }
 
 impl Counters {
-    fn add(counter: &AtomicU64, n: u64) {
-        counter.fetch_add(n, Ordering::Relaxed);
-    }
-
+    /// Records the writer dropped (the disk failed or had no room).
     fn dropped_by_writer(&self) -> u64 {
-        self.dropped_disk.load(Ordering::Relaxed) + self.dropped_no_space.load(Ordering::Relaxed)
+        read(&self.dropped_disk) + read(&self.dropped_no_space)
     }
 }
 
 /// What the loop and the writer share.
-#[derive(Default)]
-struct Shared {
-    queue: Mutex<Queue>,
-    wake: Condvar,
-    /// Set by the writer when it has closed its last file.
-    done: Mutex<bool>,
-    done_cv: Condvar,
-    counters: Counters,
-    /// The file being written (or the last one).
-    current: Mutex<Option<String>>,
-}
+type Shared = writer_thread::Shared<Queue, Counters>;
 
 /// The loop's handle on the recorder.
 pub(super) struct Recorder {
-    shared: Arc<Shared>,
-    writer: Option<JoinHandle<()>>,
+    writer: WriterThread<Queue, Counters>,
     /// The last timestamp queued, in microseconds since the epoch.
     last_us: u64,
     /// Whether records are being dropped because the queue is full (said once).
@@ -102,36 +87,29 @@ impl Recorder {
     /// Starts the writer for `record`, whose path pattern is `pattern`; it opens the
     /// first file at once.
     pub(super) fn start(record: &Recording, pattern: FilePattern) -> Recorder {
-        let shared = Arc::new(Shared::default());
         let (max_file_bytes, max_files, min_free_bytes) = (
             record.max_file_bytes,
             record.max_files,
             record.min_free_bytes,
         );
-        let writer_shared = shared.clone();
-        let writer = thread::Builder::new()
-            .name("recorder".into())
-            .spawn(move || {
-                let writer = Writer {
-                    dir: PathBuf::from(pattern.dir()),
-                    // Read here, on the writer's thread: the disk may be slow.
-                    made: MadeList::open(&pattern),
-                    pattern,
-                    max_file_bytes,
-                    max_files,
-                    min_free_bytes,
-                    shared: writer_shared,
-                    file: None,
-                    name: None,
-                    size: 0,
-                    trouble: None,
-                };
-                writer.run();
-            })
-            .map_err(|e| log::error(&format_args!("recording: cannot start the writer: {e}")))
-            .ok();
+        let writer = WriterThread::spawn("recorder", "recording", move |shared| {
+            let writer = Writer {
+                dir: PathBuf::from(pattern.dir()),
+                // Read here, on the writer's thread: the disk may be slow.
+                made: MadeList::open(&pattern),
+                pattern,
+                max_file_bytes,
+                max_files,
+                min_free_bytes,
+                shared,
+                file: None,
+                name: None,
+                size: 0,
+                trouble: None,
+            };
+            writer.run();
+        });
         Recorder {
-            shared,
             writer,
             last_us: 0,
             behind: false,
@@ -146,11 +124,8 @@ impl Recorder {
         let mut dropped = 0u64;
         let last = &mut self.last_us;
         {
-            let mut q = self
-                .shared
-                .queue
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let mut pending = self.writer.shared().queue();
+            let q = &mut pending.queued;
             let before = q.bytes.len();
             engine.poll_recorded(&mut |at, frame| {
                 let age = u64::try_from(now.saturating_since(at).as_micros()).unwrap_or(0);
@@ -167,11 +142,11 @@ impl Recorder {
                 queued += 1;
             });
             if before < WAKE_AT && q.bytes.len() >= WAKE_AT {
-                self.shared.wake.notify_one();
+                self.writer.shared().wake();
             }
         }
         if dropped > 0 {
-            Counters::add(&self.shared.counters.dropped_queue_full, dropped);
+            add(&self.writer.shared().counters().dropped_queue_full, dropped);
             self.behind_drops += dropped;
             if !self.behind {
                 self.behind = true;
@@ -191,63 +166,24 @@ impl Recorder {
     /// The counters so far (`core_dropped`: frames the core's buffer could not keep,
     /// counted as queue full).
     pub(super) fn stats(&self, core_dropped: u64) -> RecorderStats {
-        let c = &self.shared.counters;
-        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let shared = self.writer.shared();
+        let c = shared.counters();
         RecorderStats {
-            written: get(&c.written),
-            bytes: get(&c.bytes),
-            dropped_queue_full: get(&c.dropped_queue_full) + core_dropped,
-            dropped_disk: get(&c.dropped_disk),
-            dropped_no_space: get(&c.dropped_no_space),
-            files: get(&c.files),
-            removed: get(&c.removed),
-            current_path: self
-                .shared
-                .current
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .clone(),
+            written: read(&c.written),
+            bytes: read(&c.bytes),
+            dropped_queue_full: read(&c.dropped_queue_full) + core_dropped,
+            dropped_disk: read(&c.dropped_disk),
+            dropped_no_space: read(&c.dropped_no_space),
+            files: read(&c.files),
+            removed: read(&c.removed),
+            current_path: shared.current(),
         }
     }
 
     /// Lets the writer write what is queued, sync and close its file, waiting at most
     /// `timeout` for it (a stuck disk cannot hold the exit).
     pub(super) fn finish(&mut self, timeout: Duration) {
-        {
-            let mut q = self
-                .shared
-                .queue
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
-            q.stop = true;
-            self.shared.wake.notify_one();
-        }
-        let Some(writer) = self.writer.take() else {
-            return;
-        };
-        let deadline = Instant::now() + timeout;
-        let mut done = self
-            .shared
-            .done
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        while !*done {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                log::warn(&format_args!(
-                    "recording: the writer did not finish within {timeout:?}; the last records may be lost"
-                ));
-                return;
-            }
-            done = self
-                .shared
-                .done_cv
-                .wait_timeout(done, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        drop(done);
-        let _ = writer.join();
+        self.writer.finish(timeout, "records");
     }
 }
 
@@ -294,38 +230,16 @@ impl Writer {
             }
         }
         self.close();
-        let mut done = self
-            .shared
-            .done
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        *done = true;
-        self.shared.done_cv.notify_all();
     }
 
     /// Waits until records are due to be written and swaps them into `batch` (whose
     /// emptied buffers the loop fills next); true when the loop is stopping.
     fn wait(&self, batch: &mut Queue) -> bool {
-        let deadline = Instant::now() + WRITE_EVERY;
         let mut q = self
             .shared
-            .queue
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        while !q.stop && q.bytes.len() < WAKE_AT {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                break;
-            }
-            q = self
-                .shared
-                .wake
-                .wait_timeout(q, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        std::mem::swap(&mut q.bytes, &mut batch.bytes);
-        std::mem::swap(&mut q.lens, &mut batch.lens);
+            .wait_due(WRITE_EVERY, |q| q.bytes.len() >= WAKE_AT);
+        std::mem::swap(&mut q.queued.bytes, &mut batch.bytes);
+        std::mem::swap(&mut q.queued.lens, &mut batch.lens);
         q.stop
     }
 
@@ -339,7 +253,7 @@ impl Writer {
             }
             if self.file.is_none() {
                 let left = (lens.len() - i) as u64;
-                Counters::add(&self.shared.counters.dropped_disk, left);
+                add(&self.shared.counters().dropped_disk, left);
                 return;
             }
             let (mut run, mut j) = (0u64, i);
@@ -359,10 +273,10 @@ impl Writer {
     /// Writes whole records (`run`, of `lens` bytes each), if the disk has room for them.
     fn write_run(&mut self, run: &[u8], lens: &[u32]) {
         let shared = self.shared.clone();
-        let counters = &shared.counters;
+        let counters = shared.counters();
         let count = lens.len() as u64;
         if !self.make_room(run.len() as u64) {
-            Counters::add(&counters.dropped_no_space, count);
+            add(&counters.dropped_no_space, count);
             self.trouble(
                 Trouble::NoSpace,
                 &"less than min_free_bytes free on the disk even without the older recordings",
@@ -370,14 +284,14 @@ impl Writer {
             return;
         }
         let Some(file) = self.file.as_mut() else {
-            Counters::add(&counters.dropped_disk, count);
+            add(&counters.dropped_disk, count);
             return;
         };
         let e = match file.write_all(run) {
             Ok(()) => {
                 self.size += run.len() as u64;
-                Counters::add(&counters.written, count);
-                Counters::add(&counters.bytes, run.len() as u64);
+                add(&counters.written, count);
+                add(&counters.bytes, run.len() as u64);
                 self.recovered();
                 return;
             }
@@ -400,7 +314,7 @@ impl Writer {
             self.write(run, lens);
             return;
         }
-        Counters::add(&counters.dropped_disk, count);
+        add(&counters.dropped_disk, count);
         let path = self.path_text();
         self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
         if e.kind() == io::ErrorKind::FileTooLarge {
@@ -487,12 +401,8 @@ impl Writer {
         self.made.add(&name, &file);
         self.file = Some(file);
         self.name = Some(name);
-        Counters::add(&self.shared.counters.files, 1);
-        *self
-            .shared
-            .current
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = Some(self.path_text());
+        add(&self.shared.counters().files, 1);
+        self.shared.set_current(self.path_text());
         let files = self.made.recordings();
         let excess = rotation::over_count(&files, self.max_files, self.name.as_deref());
         self.remove(&excess, "beyond max_files");
@@ -505,7 +415,7 @@ impl Writer {
         for name in names {
             let path = self.dir.join(name);
             match fs::remove_file(&path) {
-                Ok(()) => Counters::add(&self.shared.counters.removed, 1),
+                Ok(()) => add(&self.shared.counters().removed, 1),
                 Err(e) if e.kind() == io::ErrorKind::NotFound => {}
                 Err(e) => {
                     log::warn(&format_args!(
@@ -531,7 +441,7 @@ impl Writer {
         if self.trouble.is_some_and(|(k, _)| k == kind) {
             return;
         }
-        let dropped = self.shared.counters.dropped_by_writer();
+        let dropped = self.shared.counters().dropped_by_writer();
         self.trouble = Some((kind, dropped));
         log::warn(&format_args!(
             "recording: {what}; records are dropped and counted until it works again"
@@ -541,7 +451,7 @@ impl Writer {
     /// Says that records are written again, after trouble.
     fn recovered(&mut self) {
         if let Some((_, before)) = self.trouble.take() {
-            let dropped = self.shared.counters.dropped_by_writer() - before;
+            let dropped = self.shared.counters().dropped_by_writer() - before;
             log::warn(&format_args!(
                 "recording: writing again to {}; {dropped} records were dropped",
                 self.path_text()
