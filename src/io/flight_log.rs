@@ -14,22 +14,20 @@
 //! [`Engine::poll_flight_log`]: crate::routing::Engine::poll_flight_log
 
 use std::collections::HashMap;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
-use std::os::unix::fs::OpenOptionsExt;
+use std::fs::{self, File};
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
 
+use super::log;
+use super::made_files::{self, CreateError};
 use super::manifest::MadeList;
-use super::recorder::local_now;
 use super::writer_thread::{self, WriterThread, add, read};
-use super::{log, sys};
 use crate::config::FlightLog;
 use crate::flight_log::{FlightLogStats, LogWrite, Protocol};
 use crate::recording::FilePattern;
-use crate::recording::pattern::MAX_SUFFIX;
 use crate::recording::rotation;
 use crate::routing::Engine;
 
@@ -294,14 +292,13 @@ impl Writer {
             return false;
         };
         let _ = fs::create_dir_all(&list.dir);
-        let Ok(free) = sys::free_bytes(&list.dir) else {
-            return true;
-        };
-        if free >= min_free.saturating_add(needed) {
-            return true;
-        }
-        let files = list.made.recordings();
-        let plan = rotation::make_room(&files, free, needed, min_free, current.as_deref());
+        let plan = made_files::room_plan(
+            &list.dir,
+            &mut list.made,
+            min_free,
+            needed,
+            current.as_deref(),
+        );
         if !plan.remove.is_empty() {
             self.remove(ext, &plan.remove, "to keep min_free_bytes free");
         }
@@ -315,41 +312,23 @@ impl Writer {
         let Some(list) = self.list(ext) else {
             return;
         };
-        let _ = fs::create_dir_all(&list.dir);
-        let time = local_now();
-        let mut opened = None;
-        let mut failed = None;
-        for n in 0..=MAX_SUFFIX {
-            let name = list.pattern.name(&time, n);
-            match OpenOptions::new()
-                .append(true)
-                .create_new(true)
-                .mode(0o640)
-                .open(list.dir.join(&name))
-            {
-                Ok(file) => {
-                    opened = Some((file, name));
-                    break;
-                }
-                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
-                Err(e) => {
-                    failed = Some(format!(
-                        "cannot create {}: {e}",
-                        list.dir.join(&name).display()
+        let (file, name) = match made_files::create_new(&list.dir, &list.pattern) {
+            Ok(opened) => opened,
+            Err(e) => {
+                let why = match e {
+                    CreateError::Failed { path, error } => {
+                        format!("cannot create {}: {error}", path.display())
+                    }
+                    CreateError::AllTaken => "every name of the pattern is taken".to_string(),
+                };
+                // Said once until writing works again (it is tried with each batch).
+                if !std::mem::replace(&mut self.trouble, true) {
+                    log::warn(&format_args!(
+                        "flight log: {why}; blocks are dropped and counted until it works again"
                     ));
-                    break;
                 }
+                return;
             }
-        }
-        let Some((file, name)) = opened else {
-            let why = failed.unwrap_or_else(|| "every name of the pattern is taken".to_string());
-            // Said once until writing works again (it is tried with each batch).
-            if !std::mem::replace(&mut self.trouble, true) {
-                log::warn(&format_args!(
-                    "flight log: {why}; blocks are dropped and counted until it works again"
-                ));
-            }
-            return;
         };
         list.made.add(&name, &file);
         let path = list.dir.join(&name).display().to_string();
@@ -377,21 +356,14 @@ impl Writer {
         let Some(list) = self.list(ext) else {
             return;
         };
-        for name in names {
-            let path = list.dir.join(name);
-            match fs::remove_file(&path) {
-                Ok(()) => add(&shared.counters().removed, 1),
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-                Err(e) => {
-                    log::warn(&format_args!(
-                        "flight log: cannot remove {} ({why}): {e}",
-                        path.display()
-                    ));
-                    continue;
-                }
-            }
-            list.made.forget(name);
-        }
+        made_files::remove(
+            &list.dir,
+            &mut list.made,
+            names,
+            why,
+            "flight log",
+            &shared.counters().removed,
+        );
         list.made.save();
     }
 

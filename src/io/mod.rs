@@ -14,13 +14,15 @@
 //! - `flight_log`: the flight logs streamed from the autopilot, written by a thread of
 //!   their own (sharing the recorder's list of created files and rotation);
 //! - `writer_thread`: what both of those writers' threads share — the queue, the wake-up,
-//!   the bounded wait at exit, the counters and the current path;
+//!   the bounded wait at exit, the counters and the current path; `made_files`: their
+//!   steps on the files they create (create afresh, remove listed ones, plan for room);
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod flight_log;
 mod log;
+mod made_files;
 pub(crate) mod manifest;
 mod notify;
 mod recorder;

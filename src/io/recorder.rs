@@ -15,22 +15,22 @@
 //! counted, never packets; each kind of trouble is said once, and again when it is over.
 //! At exit the last records are written and the file is synced and closed.
 
-use std::fs::{self, File, OpenOptions};
+use std::fs::File;
 use std::io::{self, Write};
-use std::os::unix::fs::OpenOptionsExt;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicU64;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
+use super::log;
+use super::made_files::{self, CreateError};
 use super::manifest::MadeList;
 use super::writer_thread::{self, WriterThread, add, read};
-use super::{log, sys};
 use crate::capture::tlog::TIMESTAMP_LEN;
 use crate::config::Recording;
 use crate::recording::pattern::MAX_SUFFIX;
 use crate::recording::rotation;
-use crate::recording::{FilePattern, LocalTime, RecorderStats};
+use crate::recording::{FilePattern, RecorderStats};
 use crate::routing::{Engine, Timestamp};
 
 /// What the queue between the loop and the writer may hold: seconds of the busiest
@@ -325,21 +325,11 @@ impl Writer {
     /// Removes old recordings while the disk would have less than `min_free_bytes` free
     /// after writing `needed` bytes; false if that is not enough.
     fn make_room(&mut self, needed: u64) -> bool {
-        if self.min_free_bytes == 0 {
-            return true;
-        }
-        let Ok(free) = sys::free_bytes(&self.dir) else {
-            return true;
-        };
-        if free >= self.min_free_bytes.saturating_add(needed) {
-            return true;
-        }
-        let files = self.made.recordings();
-        let plan = rotation::make_room(
-            &files,
-            free,
-            needed,
+        let plan = made_files::room_plan(
+            &self.dir,
+            &mut self.made,
             self.min_free_bytes,
+            needed,
             self.name.as_deref(),
         );
         if !plan.remove.is_empty() {
@@ -362,41 +352,23 @@ impl Writer {
     /// suffix if the name is taken); then removes the recordings beyond `max_files`.
     fn open_new(&mut self) {
         self.close();
-        let _ = fs::create_dir_all(&self.dir);
-        let time = local_now();
-        let mut opened = None;
-        for n in 0..=MAX_SUFFIX {
-            let name = self.pattern.name(&time, n);
-            // Appending: after a failed write is cut back, the next one goes at the end
-            // again (not where the failed one stopped, which would leave a hole).
-            match OpenOptions::new()
-                .append(true)
-                .create_new(true)
-                .mode(0o640)
-                .open(self.dir.join(&name))
-            {
-                Ok(file) => {
-                    opened = Some((file, name));
-                    break;
-                }
-                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
-                Err(e) => {
-                    let path = self.dir.join(&name);
-                    self.trouble(
-                        Trouble::Disk,
-                        &format_args!("cannot create {}: {e}", path.display()),
-                    );
-                    return;
-                }
+        let (file, name) = match made_files::create_new(&self.dir, &self.pattern) {
+            Ok(opened) => opened,
+            Err(CreateError::Failed { path, error }) => {
+                self.trouble(
+                    Trouble::Disk,
+                    &format_args!("cannot create {}: {error}", path.display()),
+                );
+                return;
             }
-        }
-        let Some((file, name)) = opened else {
-            let dir = self.dir.display().to_string();
-            self.trouble(
-                Trouble::Disk,
-                &format_args!("every name up to suffix -{MAX_SUFFIX} is taken in {dir}"),
-            );
-            return;
+            Err(CreateError::AllTaken) => {
+                let dir = self.dir.display().to_string();
+                self.trouble(
+                    Trouble::Disk,
+                    &format_args!("every name up to suffix -{MAX_SUFFIX} is taken in {dir}"),
+                );
+                return;
+            }
         };
         self.made.add(&name, &file);
         self.file = Some(file);
@@ -412,21 +384,14 @@ impl Writer {
     /// Removes the recordings `names` and takes them off the list (`why` goes in the
     /// message if it fails).
     fn remove(&mut self, names: &[String], why: &str) {
-        for name in names {
-            let path = self.dir.join(name);
-            match fs::remove_file(&path) {
-                Ok(()) => add(&self.shared.counters().removed, 1),
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-                Err(e) => {
-                    log::warn(&format_args!(
-                        "recording: cannot remove {} ({why}): {e}",
-                        path.display()
-                    ));
-                    continue;
-                }
-            }
-            self.made.forget(name);
-        }
+        made_files::remove(
+            &self.dir,
+            &mut self.made,
+            names,
+            why,
+            "recording",
+            &self.shared.counters().removed,
+        );
     }
 
     fn path_text(&self) -> String {
@@ -457,25 +422,6 @@ impl Writer {
                 self.path_text()
             ));
         }
-    }
-}
-
-/// The local calendar time now (UTC if the C library cannot tell).
-pub(super) fn local_now() -> LocalTime {
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_secs()).unwrap_or(i64::MAX));
-    let (year, month, day, hour, minute, second) = match sys::local_time(secs) {
-        Some((y, mo, d, h, mi, s)) => (i64::from(y), mo, d, h, mi, s),
-        None => crate::utc::calendar(secs),
-    };
-    LocalTime {
-        year: i32::try_from(year).unwrap_or(9999),
-        month,
-        day,
-        hour,
-        minute,
-        second,
     }
 }
 

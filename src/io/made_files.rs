@@ -1,0 +1,129 @@
+//! The file steps both writers (the recorder, the flight log) take on the files they
+//! create: a new file created afresh under a name of the pattern, files of the
+//! [`MadeList`] removed (and only those), and the plan of which to remove to keep
+//! `min_free_bytes` free. Listing, saving and what is said stay with each writer.
+
+use std::fs::{self, File, OpenOptions};
+use std::io;
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicU64;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use super::manifest::MadeList;
+use super::writer_thread::add;
+use super::{log, sys};
+use crate::recording::pattern::MAX_SUFFIX;
+use crate::recording::rotation::{self, SpacePlan};
+use crate::recording::{FilePattern, LocalTime};
+
+/// Why no new file was created.
+pub(super) enum CreateError {
+    /// Creating `path` failed (other than because it exists).
+    Failed { path: PathBuf, error: io::Error },
+    /// Every name of the pattern for this time, up to suffix `MAX_SUFFIX`, is taken.
+    AllTaken,
+}
+
+/// Creates `dir` if needed and in it a new file named by `pattern` after the local time
+/// now (with a suffix if the name is taken); never opens a file that exists. Returns the
+/// file, open for appending, and its name.
+pub(super) fn create_new(dir: &Path, pattern: &FilePattern) -> Result<(File, String), CreateError> {
+    let _ = fs::create_dir_all(dir);
+    let time = local_now();
+    for n in 0..=MAX_SUFFIX {
+        let name = pattern.name(&time, n);
+        // Appending: after a failed write is cut back, the next one goes at the end
+        // again (not where the failed one stopped, which would leave a hole).
+        match OpenOptions::new()
+            .append(true)
+            .create_new(true)
+            .mode(0o640)
+            .open(dir.join(&name))
+        {
+            Ok(file) => return Ok((file, name)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+            Err(error) => {
+                return Err(CreateError::Failed {
+                    path: dir.join(&name),
+                    error,
+                });
+            }
+        }
+    }
+    Err(CreateError::AllTaken)
+}
+
+/// Removes the files `names` in `dir` and takes them off `made`, counting each in
+/// `removed`; one that cannot be removed stays listed and is said (beginning with
+/// `what`, giving `why` it was to go). The caller saves the list.
+pub(super) fn remove(
+    dir: &Path,
+    made: &mut MadeList,
+    names: &[String],
+    why: &str,
+    what: &str,
+    removed: &AtomicU64,
+) {
+    for name in names {
+        let path = dir.join(name);
+        match fs::remove_file(&path) {
+            Ok(()) => add(removed, 1),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(e) => {
+                log::warn(&format_args!(
+                    "{what}: cannot remove {} ({why}): {e}",
+                    path.display()
+                ));
+                continue;
+            }
+        }
+        made.forget(name);
+    }
+}
+
+/// Which of `made`'s files to remove so that `needed` bytes can be written in `dir` with
+/// `min_free` bytes left free (never `current`, the open file); nothing when the disk has
+/// room or its free space cannot be told.
+pub(super) fn room_plan(
+    dir: &Path,
+    made: &mut MadeList,
+    min_free: u64,
+    needed: u64,
+    current: Option<&str>,
+) -> SpacePlan {
+    let room = SpacePlan {
+        remove: Vec::new(),
+        enough: true,
+    };
+    if min_free == 0 {
+        return room;
+    }
+    let Ok(free) = sys::free_bytes(dir) else {
+        return room;
+    };
+    if free >= min_free.saturating_add(needed) {
+        return room;
+    }
+    let files = made.recordings();
+    rotation::make_room(&files, free, needed, min_free, current)
+}
+
+/// The local calendar time now (UTC if the C library cannot tell).
+pub(super) fn local_now() -> LocalTime {
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_secs()).unwrap_or(i64::MAX));
+    let (year, month, day, hour, minute, second) = match sys::local_time(secs) {
+        Some((y, mo, d, h, mi, s)) => (i64::from(y), mo, d, h, mi, s),
+        None => crate::utc::calendar(secs),
+    };
+    LocalTime {
+        year: i32::try_from(year).unwrap_or(9999),
+        month,
+        day,
+        hour,
+        minute,
+        second,
+    }
+}
