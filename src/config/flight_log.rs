@@ -6,7 +6,7 @@
 use super::Span;
 use super::ast::{Ast, FlightLogSetting};
 use super::diagnostic::Diagnostic;
-use super::values::{ranged, ranged_bytes};
+use super::values::{mavlink_id, ranged, ranged_bytes};
 use crate::address::Address;
 use crate::recording::FilePattern;
 
@@ -110,8 +110,8 @@ pub(crate) fn check(
     };
     for s in settings {
         match *s {
-            FlightLogSetting::System(v) => match ranged(ast.text(v), 1, 255, "system id") {
-                Ok(n) => log.system = u8::try_from(n).unwrap_or(1),
+            FlightLogSetting::System(v) => match mavlink_id(ast.text(v), "system id") {
+                Ok(n) => log.system = n,
                 Err(m) => fail(Diagnostic::new(v, m)),
             },
             FlightLogSetting::Source(v) => match source(ast.text(v)) {

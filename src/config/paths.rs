@@ -8,7 +8,7 @@ use std::time::Duration;
 use super::Span;
 use super::ast::{Ast, HeartbeatSetting};
 use super::diagnostic::Diagnostic;
-use super::values::ranged;
+use super::values::mavlink_id;
 
 /// The shortest `dedup` window.
 pub const MIN_DEDUP: Duration = Duration::from_millis(1);
@@ -127,12 +127,12 @@ pub(crate) fn heartbeat(
     };
     for s in settings {
         match *s {
-            HeartbeatSetting::System(v) => match ranged(ast.text(v), 1, 255, "system id") {
-                Ok(n) => hb.system = n as u8,
+            HeartbeatSetting::System(v) => match mavlink_id(ast.text(v), "system id") {
+                Ok(n) => hb.system = n,
                 Err(m) => fail(Diagnostic::new(v, m)),
             },
-            HeartbeatSetting::Component(v) => match ranged(ast.text(v), 1, 255, "component id") {
-                Ok(n) => hb.component = n as u8,
+            HeartbeatSetting::Component(v) => match mavlink_id(ast.text(v), "component id") {
+                Ok(n) => hb.component = n,
                 Err(m) => fail(Diagnostic::new(v, m)),
             },
             HeartbeatSetting::Interval(v) => {

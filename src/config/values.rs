@@ -76,3 +76,9 @@ pub(super) fn ranged(text: &str, min: u64, max: u64, what: &str) -> Result<u64, 
         )),
     }
 }
+
+/// `text` as a MAVLink system or component id (1 to 255), or the error text naming
+/// `what`.
+pub(super) fn mavlink_id(text: &str, what: &str) -> Result<u8, String> {
+    ranged(text, 1, 255, what).map(|n| u8::try_from(n).unwrap_or(u8::MAX))
+}
