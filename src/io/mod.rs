@@ -4,7 +4,7 @@
 //!
 //! - `runtime`: the loop — wait, read, core, send, arm the one timer;
 //! - `driver`: what every transport driver does for the loop;
-//! - `udp`, `tcp`, `serial`: the drivers (`stream`: what serial and TCP share;
+//! - `udp`, `tcp`, `serial`, `zenoh` (feature `zenoh`): the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `notify`: systemd's readiness, reload and watchdog notifications;
@@ -30,5 +30,7 @@ mod stream;
 mod sys;
 mod tcp;
 mod udp;
+#[cfg(feature = "zenoh")]
+mod zenoh;
 
 pub use runtime::run;

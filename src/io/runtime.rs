@@ -41,7 +41,8 @@ use crate::signing::clock::units_from_unix;
 const SIGNALS: Token = Token(usize::MAX - 1);
 /// Token of the timer.
 const TIMER: Token = Token(usize::MAX - 2);
-/// Token of the waker that look-ups of host names ring when they have an answer.
+/// Token of the waker that look-ups of host names ring when they have an answer, and
+/// drivers fed by threads (Zenoh) when they have input.
 const WAKER: Token = Token(usize::MAX - 3);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
@@ -82,6 +83,9 @@ struct Runtime {
     to_flush: Vec<usize>,
     /// Slots waiting for a look-up of their remote: flushed when the waker rings.
     opening: Vec<usize>,
+    /// Slots whose input comes from threads that ring the waker ([`Driver::woken`]):
+    /// read when it rings.
+    woken: Vec<usize>,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -269,6 +273,7 @@ impl Runtime {
     /// Puts `driver` in the loop and watches its descriptor.
     fn add(&mut self, driver: Box<dyn Driver>, ready: bool) {
         let interface = driver.interface();
+        let woken = driver.woken();
         let key = self.slots.insert(Slot {
             driver,
             registered: None,
@@ -281,6 +286,9 @@ impl Runtime {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
         }
         self.slot_of[interface.0] = key;
+        if woken {
+            self.woken.push(key);
+        }
         self.watch(key);
         if ready {
             self.mark_readable(key);
@@ -294,6 +302,7 @@ impl Runtime {
         };
         self.close(key);
         self.slots.try_remove(key);
+        self.woken.retain(|&k| k != key);
         if let Some(k) = self.slot_of.get_mut(interface.0) {
             *k = usize::MAX;
         }
@@ -500,8 +509,14 @@ impl Runtime {
                             }
                         }
                     }
-                    // A look-up has its answer; the drivers' flush takes it below.
-                    WAKER => self.flush_opening(),
+                    // A look-up has its answer (the drivers' flush takes it below), or
+                    // a driver fed by threads has input.
+                    WAKER => {
+                        self.flush_opening();
+                        for key in self.woken.clone() {
+                            self.mark_readable(key);
+                        }
+                    }
                     TIMER => {
                         self.timer.acknowledge();
                         // Fired: whatever is due next is armed afresh.
@@ -712,6 +727,7 @@ fn start(
         readable: VecDeque::new(),
         to_flush: Vec::new(),
         opening: Vec::new(),
+        woken: Vec::new(),
         timer,
         timer_armed: None,
         signals,

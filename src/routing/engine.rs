@@ -29,6 +29,7 @@
 mod configure;
 mod input;
 mod interfaces;
+mod messages;
 mod paths;
 mod ready;
 mod report;
@@ -68,6 +69,7 @@ use crate::signing::{Edge, Signing, SigningKey};
 use crate::stats::{History, StatsSnapshot};
 
 pub use configure::{Reconfigured, Request};
+pub use messages::SystemSet;
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);

@@ -37,6 +37,9 @@ pub(crate) enum Identity {
     TcpClient(String),
     /// A serial port at this path (as written).
     Serial(String),
+    /// A Zenoh session publishing under this prefix, in this mode, with these
+    /// endpoints.
+    Zenoh(String),
 }
 
 impl Identity {
@@ -52,6 +55,10 @@ impl Identity {
                 Some(remote) => Identity::TcpClient(remote.to_string()),
             },
             Interface::Serial(s) => Identity::Serial(s.device.clone()),
+            Interface::Zenoh(z) => Identity::Zenoh(format!(
+                "{:?} {} {:?} {:?}",
+                z.mode, z.prefix, z.connect, z.listen
+            )),
         }
     }
 }
@@ -151,6 +158,7 @@ fn in_place(iface: &Interface) -> (Option<u64>, Option<bool>, Option<&PeerLimits
         Interface::Udp(u) => (u.max_bitrate, allow_unsigned, Some(&u.peers)),
         Interface::Tcp(t) => (t.max_bitrate, allow_unsigned, Some(&t.peers)),
         Interface::Serial(s) => (s.max_bitrate, allow_unsigned, None),
+        Interface::Zenoh(_) => (None, allow_unsigned, None),
     }
 }
 
@@ -165,6 +173,7 @@ fn fixed_part(iface: &Interface) -> Interface {
             (t.max_bitrate, t.signing, t.peers) = (None, None, PeerLimits::default());
         }
         Interface::Serial(s) => (s.max_bitrate, s.signing) = (None, None),
+        Interface::Zenoh(z) => z.signing = None,
     }
     f
 }

@@ -31,3 +31,5 @@ mod stats_e2e;
 mod stats_page_browser;
 mod tcp_faults_e2e;
 mod transports_e2e;
+#[cfg(feature = "zenoh")]
+mod zenoh_e2e;

@@ -1,0 +1,452 @@
+//! End-to-end tests of the Zenoh interface on a real Zenoh network on loopback: a Zenoh
+//! router from the PyPI `eclipse-zenoh` package (`tests/py/zenoh_router.py`), mavtables
+//! routers as its clients — three edge routers, each with a simulated vehicle behind a
+//! UDP link, and a ground-station router with a UDP ground station — and mavtables
+//! routers as Zenoh peers without a Zenoh router. An independent subscriber
+//! (`tests/py/zenoh_listen.py`) decodes every publication with pymavlink. Every wait is
+//! bounded and ends on an event.
+
+use crate::common;
+
+use std::net::UdpSocket;
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use common::net::{ACCEPT_ALL, Counters, SECOND, free_tcp_port, heartbeat, numbered};
+use common::process::Proc;
+use common::router::{Router, Scratch, free_udp_port};
+use mavtables::wire::encode::{Header, encode_v2};
+use mavtables::wire::{Frame, Parser};
+
+const PREFIX: &str = "fleet/e2e";
+/// The label of the Zenoh interface and the name of its link.
+const LINK: &str = "zenoh fleet/e2e";
+const COMMAND_LONG: u32 = 76;
+const ATTITUDE: u32 = 30;
+
+fn script(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/py")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+/// A Zenoh router (eclipse-zenoh, router mode) listening at `endpoint`.
+fn zenoh_router(endpoint: &str) -> Proc {
+    let mut cmd = Command::new(common::python());
+    cmd.arg(script("zenoh_router.py")).arg(endpoint);
+    let mut router = Proc::spawn(cmd, "zenoh router");
+    router.wait_for("ready", 30 * SECOND);
+    router
+}
+
+/// An eclipse-zenoh client of the router at `endpoint`, subscribed to `keys`, printing
+/// what pymavlink decodes of each sample.
+fn zenoh_listener(endpoint: &str, keys: &str) -> Proc {
+    let mut cmd = Command::new(common::python());
+    cmd.arg(script("zenoh_listen.py")).arg(endpoint).arg(keys);
+    let mut listener = Proc::spawn(cmd, "zenoh listener");
+    listener.wait_for("ready", 30 * SECOND);
+    listener
+}
+
+/// COMMAND_LONG from the ground station (255.190) to `target`.1.
+fn command_long(target: u8) -> Vec<u8> {
+    let mut payload = [0u8; 33];
+    payload[..4].copy_from_slice(&1.0f32.to_le_bytes());
+    payload[28] = 176; // MAV_CMD_DO_SET_MODE
+    payload[30] = target;
+    payload[31] = 1;
+    let header = Header {
+        seq: 0,
+        system: 255,
+        component: 190,
+    };
+    let mut frame = Vec::new();
+    encode_v2(header, COMMAND_LONG, &payload, None, &mut frame).expect("encode");
+    frame
+}
+
+/// A mavtables router with a UDP server for its one local peer (a vehicle or a ground
+/// station) and a `zenoh` block, and that peer's socket.
+struct Site {
+    router: Router,
+    port: u16,
+    peer: UdpSocket,
+    parser: Parser,
+    /// Every frame the peer received.
+    got: Vec<Vec<u8>>,
+    _scratch: Scratch,
+}
+
+impl Site {
+    fn start(tag: &str, zenoh: &str) -> Site {
+        let scratch = Scratch::new(tag);
+        let port = free_udp_port();
+        let config = format!("udp {{ port {port}; address 127.0.0.1; }}\n{zenoh}\n{ACCEPT_ALL}");
+        let router = Router::start(&scratch, &config, 1);
+        let peer = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        peer.set_nonblocking(true).expect("nonblocking");
+        Site {
+            router,
+            port,
+            peer,
+            parser: Parser::new(),
+            got: Vec::new(),
+            _scratch: scratch,
+        }
+    }
+
+    fn send(&self, frame: &[u8]) {
+        self.peer
+            .send_to(frame, ("127.0.0.1", self.port))
+            .expect("send");
+    }
+
+    /// Takes what the peer received so far into `got`.
+    fn take(&mut self) {
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = self.peer.recv(&mut buf) {
+            let got = &mut self.got;
+            self.parser
+                .feed(&buf[..n], |f| got.push(f.as_bytes().to_vec()));
+        }
+    }
+
+    /// True once the peer received a frame that `wanted` accepts.
+    fn has(&mut self, wanted: impl Fn(&Frame<'_>) -> bool) -> bool {
+        self.take();
+        self.got
+            .iter()
+            .any(|f| Frame::parse_exact(f).is_ok_and(|f| wanted(&f)))
+    }
+
+    /// Frames of message `id` from system `sys` the peer received.
+    fn count(&mut self, id: u32, sys: u8) -> usize {
+        self.take();
+        (self.got.iter())
+            .filter(|f| {
+                Frame::parse_exact(f).is_ok_and(|f| f.message_id() == id && f.system() == sys)
+            })
+            .count()
+    }
+
+    /// The frames received on the Zenoh link so far.
+    fn zenoh_frames_in(&mut self) -> u64 {
+        let counters = common::net::counters(&mut self.router);
+        counters
+            .link(LINK)
+            .unwrap_or_else(|| panic!("no link {LINK} in {}", counters.text))
+            .frames_in
+    }
+
+    /// The frames received on the Zenoh link, from the counters at exit.
+    fn stop(self) -> u64 {
+        let stopped = self.router.stop();
+        let counters = Counters::at_exit(&stopped.stderr);
+        counters
+            .link(LINK)
+            .unwrap_or_else(|| panic!("no link {LINK} in {}", counters.text))
+            .frames_in
+    }
+}
+
+/// Runs `step` (which sends what it sends each round, then says whether what was
+/// awaited arrived) every 50 ms until it says so; panics after `timeout`, naming `what`.
+fn until(what: &str, timeout: Duration, mut step: impl FnMut() -> bool) {
+    let deadline = Instant::now() + timeout;
+    while !step() {
+        assert!(Instant::now() < deadline, "{what}: not within {timeout:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn is(id: u32, sys: u8) -> impl Fn(&Frame<'_>) -> bool {
+    move |f| f.message_id() == id && f.system() == sys
+}
+
+/// A marker: ATTITUDE carrying a counter no other frame of these tests carries.
+const MARKER: u32 = 0xC0FFEE;
+
+fn is_marker(sys: u8, n: u32) -> impl Fn(&Frame<'_>) -> bool {
+    move |f| {
+        f.message_id() == ATTITUDE && f.system() == sys && common::net::number_of(f.as_bytes()) == n
+    }
+}
+
+/// Every peer sends marker `n`, and every other peer receives it: Zenoh keeps each
+/// publisher's order, so everything sent before has arrived everywhere by then.
+fn exchange_markers(gs: &mut Site, edges: &mut [Site], n: u32) {
+    for (i, site) in (1u8..).zip(edges.iter()) {
+        site.send(&numbered(i, n));
+    }
+    gs.send(&numbered(255, n));
+    until("every marker at every other peer", 10 * SECOND, || {
+        let mut all = (1..=3).all(|i| gs.has(is_marker(i, n)));
+        for (me, edge) in edges.iter_mut().enumerate() {
+            for (j, sys) in [1u8, 2, 3, 255].into_iter().enumerate() {
+                all &= j == me || edge.has(is_marker(sys, n));
+            }
+        }
+        all
+    });
+}
+
+/// Three edge routers with a vehicle each (systems 1, 2, 3) and a ground-station router
+/// (`receive all;`) with a ground station (255), all clients of one Zenoh router:
+/// every vehicle's telemetry reaches the ground station; a COMMAND_LONG for vehicle 2
+/// reaches vehicle 2 only; each edge router receives exactly the publications for its
+/// vehicle and the broadcasts of the others (Zenoh filtered the rest at the publishing
+/// side); and an independent eclipse-zenoh subscriber decodes every publication with
+/// pymavlink, under the documented keys.
+#[test]
+fn a_fleet_through_a_zenoh_router() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let mut zenohd = zenoh_router(&endpoint);
+    let mut listener = zenoh_listener(&endpoint, &format!("{PREFIX}/**"));
+    let block = |receive: &str| {
+        format!("zenoh {{ mode client; connect {endpoint}; prefix {PREFIX}; {receive} }}")
+    };
+    let mut gs = Site::start("zenoh-gs", &block("receive all;"));
+    let mut edges: Vec<Site> = (1..=3)
+        .map(|i| Site::start(&format!("zenoh-edge-{i}"), &block("")))
+        .collect();
+
+    // Every router is connected and subscribed: every peer hears every other.
+    until("every heartbeat at every other peer", 30 * SECOND, || {
+        gs.send(&heartbeat(255));
+        for (i, edge) in (1u8..).zip(&edges) {
+            edge.send(&heartbeat(i));
+        }
+        let mut all = (1..=3).all(|i| gs.has(is(0, i)));
+        for (me, edge) in edges.iter_mut().enumerate() {
+            for (j, sys) in [1u8, 2, 3, 255].into_iter().enumerate() {
+                all &= j == me || edge.has(is(0, sys));
+            }
+        }
+        all
+    });
+    // From a quiet point on, what each edge receives is counted against what the
+    // independent subscriber saw published.
+    exchange_markers(&mut gs, &mut edges, MARKER);
+    let before: Vec<u64> = edges.iter_mut().map(Site::zenoh_frames_in).collect();
+    let gs_before = gs.zenoh_frames_in();
+    until("the first marker at the subscriber", 10 * SECOND, || {
+        listener.out.drain();
+        let key = format!("{PREFIX}/all/255/1/ATTITUDE");
+        listener
+            .out
+            .seen
+            .iter()
+            .filter(|l| l.starts_with(&key))
+            .count()
+            == 1
+    });
+    let skip = listener.out.seen.len();
+
+    // Telemetry from every vehicle, and a command for vehicle 2: it reaches vehicle 2;
+    // the others see the markers sent after it, and never the command.
+    for n in 0..10 {
+        for (i, edge) in (1u8..).zip(&edges) {
+            edge.send(&numbered(i, n));
+        }
+    }
+    gs.send(&command_long(2));
+    until("the command at vehicle 2", 10 * SECOND, || {
+        edges[1].has(is(COMMAND_LONG, 255))
+    });
+    exchange_markers(&mut gs, &mut edges, MARKER + 1);
+    for (i, edge) in (1u8..).zip(edges.iter_mut()) {
+        let commands = edge.count(COMMAND_LONG, 255);
+        assert_eq!(
+            commands,
+            usize::from(i == 2),
+            "vehicle {i} got {commands} commands"
+        );
+        for from in (1u8..=3).filter(|&f| f != i) {
+            assert!(
+                edge.count(ATTITUDE, from) >= 12,
+                "vehicle {i}: telemetry of {from}"
+            );
+        }
+    }
+    assert_eq!(
+        (1..=3).map(|i| gs.count(ATTITUDE, i)).sum::<usize>(),
+        3 * 12
+    );
+    until(
+        "every marker at the eclipse-zenoh subscriber",
+        10 * SECOND,
+        || {
+            listener.out.drain();
+            let seen = &listener.out.seen[skip..];
+            // Ten frames and a marker from each vehicle, a marker from the ground station.
+            [(1u8, 11), (2, 11), (3, 11), (255, 1)]
+                .iter()
+                .all(|(sys, n)| {
+                    let key = format!("{PREFIX}/all/{sys}/1/ATTITUDE");
+                    seen.iter().filter(|l| l.starts_with(&key)).count() == *n
+                })
+        },
+    );
+
+    // What the independent subscriber saw: one MAVLink frame per sample, under the key
+    // its contents say.
+    let lines = listener.finish(5 * SECOND);
+    let samples: Vec<Vec<&str>> = lines[skip..]
+        .iter()
+        .filter(|l| l.starts_with(PREFIX) || l.starts_with("bad"))
+        .map(|l| l.split(' ').collect())
+        .collect();
+    assert!(samples.len() >= 30, "{lines:?}");
+    for s in &samples {
+        assert_eq!(s.len(), 5, "one decoded frame per sample: {s:?}");
+        let chunks: Vec<&str> = s[0].split('/').collect();
+        let [_, _, destination, system, component, name] = chunks[..] else {
+            panic!("key {}", s[0]);
+        };
+        assert_eq!(name, s[1], "{s:?}");
+        assert_eq!((system, component), (s[2], s[3]), "{s:?}");
+        assert!(destination == "all" || destination == s[4], "{s:?}");
+    }
+    let command_key = format!("{PREFIX}/2/255/190/COMMAND_LONG");
+    assert!(samples.iter().any(|s| s[0] == command_key), "{lines:?}");
+
+    // Each edge received exactly what was published for it: the broadcasts of the
+    // others and the frames for its own vehicle, never the command for vehicle 2.
+    let after: Vec<u64> = edges.into_iter().map(Site::stop).collect();
+    for (i, (after, before)) in (1u8..).zip(after.into_iter().zip(before)) {
+        let mine = i.to_string();
+        let expected = (samples.iter())
+            .filter(|s| {
+                let chunks: Vec<&str> = s[0].split('/').collect();
+                (chunks[2] == "all" || chunks[2] == mine) && chunks[3] != mine
+            })
+            .count() as u64;
+        assert_eq!(after - before, expected, "edge {i}");
+        eprintln!(
+            "zenoh: edge {i} received {expected} of {} publications",
+            samples.len()
+        );
+    }
+    let from_vehicles = samples.iter().filter(|s| s[2] != "255").count() as u64;
+    assert_eq!(
+        gs.stop() - gs_before,
+        from_vehicles,
+        "the ground station router"
+    );
+    zenohd.finish(5 * SECOND);
+}
+
+/// The Zenoh router goes away and comes back on the same endpoint: the mavtables
+/// clients reconnect by themselves (the time is printed), and from then on nothing is
+/// lost: 200 numbered frames from a vehicle all reach the ground station, in order, and a
+/// command reaches its vehicle.
+#[test]
+fn a_zenoh_router_restart_loses_nothing_after_reconnection() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let zenohd = zenoh_router(&endpoint);
+    let block =
+        |receive: &str| format!("zenoh {{ connect {endpoint}; prefix {PREFIX}; {receive} }}");
+    let mut gs = Site::start("zenoh-restart-gs", &block("receive all;"));
+    let mut edges: Vec<Site> = (1..=2)
+        .map(|i| Site::start(&format!("zenoh-restart-edge-{i}"), &block("")))
+        .collect();
+    let all_heard = |gs: &mut Site, edges: &[Site]| {
+        gs.got.clear();
+        until(
+            "every vehicle's heartbeat at the ground station",
+            30 * SECOND,
+            || {
+                gs.send(&heartbeat(255));
+                for (i, edge) in (1u8..).zip(edges) {
+                    edge.send(&heartbeat(i));
+                }
+                (1..=2).all(|i| gs.has(is(0, i)))
+            },
+        );
+    };
+    all_heard(&mut gs, &edges);
+
+    let mut zenohd = zenohd;
+    zenohd.finish(5 * SECOND);
+    drop(zenohd);
+    let mut zenohd = zenoh_router(&endpoint);
+    let restarted = Instant::now();
+    all_heard(&mut gs, &edges);
+    eprintln!(
+        "zenoh: every router reconnected {:?} after the restarted Zenoh router listened",
+        restarted.elapsed()
+    );
+    for site in &mut edges {
+        site.take();
+        site.got.clear();
+    }
+    gs.got.clear();
+    for n in 0..200 {
+        edges[0].send(&numbered(1, n));
+    }
+    gs.send(&command_long(2));
+    until("200 frames at the ground station", 10 * SECOND, || {
+        gs.count(ATTITUDE, 1) == 200
+    });
+    let numbers: Vec<u32> = (gs.got.iter())
+        .filter(|f| Frame::parse_exact(f).is_ok_and(|f| f.message_id() == ATTITUDE))
+        .map(|f| common::net::number_of(f))
+        .collect();
+    assert_eq!(numbers, (0..200).collect::<Vec<u32>>());
+    until("the command at vehicle 2", 10 * SECOND, || {
+        edges[1].has(is(COMMAND_LONG, 255))
+    });
+    assert_eq!(edges[0].count(COMMAND_LONG, 255), 0);
+    for site in edges {
+        site.stop();
+    }
+    gs.stop();
+    zenohd.finish(5 * SECOND);
+}
+
+/// Peers without a Zenoh router: the ground-station router listens, an edge router
+/// connects to it; telemetry and a command go both ways.
+#[test]
+fn peers_without_a_zenoh_router() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let mut gs = Site::start(
+        "zenoh-peer-gs",
+        &format!("zenoh {{ mode peer; listen {endpoint}; prefix {PREFIX}; receive all; }}"),
+    );
+    let mut edge = Site::start(
+        "zenoh-peer-edge",
+        &format!("zenoh {{ mode peer; connect {endpoint}; prefix {PREFIX}; }}"),
+    );
+    until(
+        "the vehicle's heartbeat at the ground station",
+        30 * SECOND,
+        || {
+            gs.send(&heartbeat(255));
+            edge.send(&heartbeat(1));
+            gs.has(is(0, 1)) && edge.has(is(0, 255))
+        },
+    );
+    gs.send(&command_long(1));
+    gs.send(&numbered(255, MARKER));
+    until(
+        "the command and the marker at the vehicle",
+        10 * SECOND,
+        || edge.has(is(COMMAND_LONG, 255)) && edge.has(is_marker(255, MARKER)),
+    );
+    let commands: Vec<u8> = (edge.got.iter())
+        .filter_map(|f| Frame::parse_exact(f).ok())
+        .filter(|f| f.message_id() == COMMAND_LONG)
+        .filter_map(|f| f.target().map(|t| t.system))
+        .collect();
+    assert_eq!(
+        commands,
+        [1],
+        "only the command for the vehicle behind the edge"
+    );
+    edge.stop();
+    gs.stop();
+}
