@@ -3,7 +3,8 @@
 //! routers as its clients — three edge routers, each with a simulated vehicle behind a
 //! UDP link, and a ground-station router with a UDP ground station — and mavtables
 //! routers as Zenoh peers without a Zenoh router. An independent subscriber
-//! (`tests/py/zenoh_listen.py`) decodes every publication with pymavlink. Every wait is
+//! (`tests/py/zenoh_listen.py`) decodes every publication with pymavlink, and MAVProxy
+//! downloads the parameters of a vehicle behind an edge. Every wait is
 //! bounded and ends on an event.
 
 use crate::common;
@@ -13,6 +14,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::mavproxy::{VehicleLink, ground_station_session};
 use common::net::{ACCEPT_ALL, Counters, SECOND, free_tcp_port, heartbeat, numbered};
 use common::process::Proc;
 use common::router::{Router, Scratch, free_udp_port};
@@ -449,4 +451,41 @@ fn peers_without_a_zenoh_router() {
     );
     edge.stop();
     gs.stop();
+}
+
+/// MAVProxy at the ground-station router downloads every parameter of a vehicle behind
+/// an edge router, arms it and sets a parameter, all through a Zenoh router: the
+/// requests (for system 1) reach the edge only because it subscribed to system 1.
+#[test]
+fn mavproxy_downloads_parameters_from_a_vehicle_behind_an_edge() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let mut zenohd = zenoh_router(&endpoint);
+    let edge_scratch = Scratch::new("zenoh-mavproxy-edge");
+    let edge_port = free_udp_port();
+    let edge = Router::start(
+        &edge_scratch,
+        &format!(
+            "udp {{ port {edge_port}; address 127.0.0.1; }}\nzenoh {{ connect {endpoint}; prefix {PREFIX}; }}\n{ACCEPT_ALL}"
+        ),
+        1,
+    );
+    let s = Scratch::new("zenoh-mavproxy-gs");
+    let gs_port = free_udp_port();
+    let config = format!(
+        "udp {{ port {gs_port}; address 127.0.0.1; }}\nzenoh {{ connect {endpoint}; prefix {PREFIX}; receive all; }}\n{ACCEPT_ALL}"
+    );
+    let session = ground_station_session(
+        &s,
+        &config,
+        &format!("udpout:127.0.0.1:{gs_port}"),
+        VehicleLink::Udp(format!("127.0.0.1:{edge_port}")),
+    );
+    assert!(
+        (session.router.stdout.iter()).any(|l| l.contains(&format!("new component 1.1 on {LINK}"))),
+        "the ground-station router learned the vehicle over Zenoh: {:#?}",
+        session.router.stdout
+    );
+    edge.stop();
+    zenohd.finish(5 * SECOND);
+    eprintln!("zenoh: the MAVProxy session took {:?}", session.took);
 }
