@@ -346,8 +346,13 @@ impl Runtime {
         for key in opening {
             match self.slots.get_mut(key) {
                 Some(slot) if slot.opening && slot.driver.fd().is_none() => {
+                    if slot.driver.woken() {
+                        // Read at every ring: its `receive` hears how the opening went.
+                        slot.opening = false;
+                    } else {
+                        self.opening.push(key);
+                    }
                     self.mark_flush(key);
-                    self.opening.push(key);
                 }
                 Some(slot) => slot.opening = false,
                 None => {}

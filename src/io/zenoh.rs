@@ -64,8 +64,8 @@ struct Shared {
     dropped_in: AtomicU64,
     /// Frames the session could not publish.
     put_errors: AtomicU64,
-    /// Why the session could not be opened, once it failed.
-    failed: Mutex<Option<String>>,
+    /// How opening the session went, once it is known.
+    opened: Mutex<Option<Result<(), String>>>,
 }
 
 impl Shared {
@@ -92,6 +92,9 @@ pub struct ZenohDriver {
     in_flight: VecDeque<Transmit>,
     /// The systems last asked for (an edge).
     subscribed: Option<SystemSet>,
+    /// The session is being opened: the core hears how it went from `receive` or
+    /// `flush` (the session's thread rings the waker when it knows).
+    opening: bool,
     /// Frames not published because the session was behind.
     dropped_out: u64,
     /// Samples that were not exactly one MAVLink frame.
@@ -110,13 +113,14 @@ impl ZenohDriver {
                 woken: AtomicBool::new(false),
                 dropped_in: AtomicU64::new(0),
                 put_errors: AtomicU64::new(0),
-                failed: Mutex::new(None),
+                opened: Mutex::new(None),
             }),
             inbox: None,
             outbox: None,
             worker: None,
             in_flight: VecDeque::new(),
             subscribed: None,
+            opening: false,
             dropped_out: 0,
             malformed: 0,
         }
@@ -140,11 +144,39 @@ impl ZenohDriver {
         }
     }
 
+    /// Tells the core how opening the session went, once the session's thread knows:
+    /// `Err(())` when it failed (the core tries again after its backoff).
+    fn finish_open(&mut self, engine: &mut Engine, now: Timestamp) -> Result<(), ()> {
+        if !self.opening {
+            return Ok(());
+        }
+        let outcome = self
+            .shared
+            .opened
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        match outcome {
+            None => Ok(()),
+            Some(Ok(())) => {
+                self.opening = false;
+                engine.stream_opened(self.interface, now);
+                Ok(())
+            }
+            Some(Err(why)) => {
+                self.opening = false;
+                engine.stream_open_failed(self.interface, now, &why);
+                Err(())
+            }
+        }
+    }
+
     /// Stops the session: its thread ends once it has taken what was sent to it.
     fn stop(&mut self) {
         self.outbox = None;
         self.inbox = None;
         self.subscribed = None;
+        self.opening = false;
         if let Some(worker) = self.worker.take() {
             let _ = worker.join();
         }
@@ -181,7 +213,7 @@ impl Driver for ZenohDriver {
 
     fn open(&mut self, _engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
         self.stop();
-        *self.shared.failed.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *self.shared.opened.lock().unwrap_or_else(|e| e.into_inner()) = None;
         let zconfig = session_config(&self.config).map_err(io::Error::other)?;
         let (to_loop, inbox) = mpsc::sync_channel(INBOX);
         let (outbox, commands) = mpsc::sync_channel(OUTBOX);
@@ -193,7 +225,9 @@ impl Driver for ZenohDriver {
         self.worker = Some(worker);
         self.inbox = Some(inbox);
         self.outbox = Some(outbox);
-        Ok(true)
+        self.opening = true;
+        // Open once the session's thread says so (it rings the waker).
+        Ok(false)
     }
 
     fn close(&mut self) {
@@ -202,17 +236,10 @@ impl Driver for ZenohDriver {
 
     fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         self.shared.woken.store(false, Ordering::Release);
-        let failed = self
-            .shared
-            .failed
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take();
-        if let Some(why) = failed {
-            engine.stream_lost(self.interface, now, &why);
+        if self.finish_open(engine, now).is_err() {
             return Progress::Lost;
         }
-        let Some(inbox) = &self.inbox else {
+        let Some(inbox) = self.inbox.as_ref().filter(|_| !self.opening) else {
             return Progress::Done;
         };
         let mut progress = Progress::More;
@@ -236,6 +263,12 @@ impl Driver for ZenohDriver {
     }
 
     fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        if self.finish_open(engine, now).is_err() {
+            return Progress::Lost;
+        }
+        if self.opening {
+            return Progress::Done;
+        }
         self.refresh_subscriptions(engine, now);
         let Some(outbox) = &self.outbox else {
             return Progress::Done;
@@ -299,6 +332,28 @@ pub(crate) fn key_of(prefix: &str, frame: &[u8], dialect: &Dialect) -> String {
     }
 }
 
+/// `text` without the source locations Zenoh's errors carry (` /path/to/file.rs:61.`,
+/// sometimes after ` at`).
+fn without_locations(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find(" /") {
+        let tail = &rest[at + 1..];
+        let end = tail
+            .find(|c: char| c.is_whitespace() || c == ']')
+            .unwrap_or(tail.len());
+        let kept = &rest[..at];
+        if tail[..end].contains(".rs:") {
+            out.push_str(kept.strip_suffix(" at").unwrap_or(kept).trim_end());
+        } else {
+            out.push_str(&rest[..at + 1 + end]);
+        }
+        rest = &tail[end..];
+    }
+    out.push_str(rest);
+    out.trim_end().to_string()
+}
+
 /// How Zenoh retries an endpoint it cannot reach or lost (its default: after 1 s,
 /// doubling up to every 4 s).
 const RETRY: &str = r#"{ period_init_ms: 200, period_max_ms: 1000, period_increase_factor: 2 }"#;
@@ -339,13 +394,17 @@ fn run_session(
     to_loop: &SyncSender<Vec<u8>>,
     shared: &Arc<Shared>,
 ) {
-    let session = match zenoh::open(config).wait() {
-        Ok(s) => s,
-        Err(e) => {
-            *shared.failed.lock().unwrap_or_else(|e| e.into_inner()) = Some(e.to_string());
-            shared.ring();
-            return;
-        }
+    let opened = zenoh::open(config).wait();
+    let outcome = opened
+        .as_ref()
+        .map(|_| ())
+        .map_err(|e| without_locations(&e.to_string()));
+    *shared.opened.lock().unwrap_or_else(|e| e.into_inner()) = Some(outcome);
+    // The loop learns the outcome from the waker: `flush` (after a look-up-like wait)
+    // or `receive` takes it.
+    let _ = shared.waker.wake();
+    let Ok(session) = opened else {
+        return;
     };
     let deliver = {
         let to_loop = to_loop.clone();
@@ -441,6 +500,24 @@ mod tests {
         assert_eq!(
             key_of("f/a", &frame(76, &payload), &d),
             "f/a/all/7/1/COMMAND_LONG"
+        );
+    }
+
+    #[test]
+    fn errors_lose_their_source_locations() {
+        assert_eq!(
+            without_locations(
+                "Can not listen on tcp/1.2.3.4:5: [1.2.3.4:5: in use (os error 98) /x/tcp.rs:61.] /x/unicast.rs:338."
+            ),
+            "Can not listen on tcp/1.2.3.4:5: [1.2.3.4:5: in use (os error 98)]"
+        );
+        assert_eq!(
+            without_locations("Unable to connect to any of [tcp/1.2.3.4:5]!  /x/y.rs:447."),
+            "Unable to connect to any of [tcp/1.2.3.4:5]!"
+        );
+        assert_eq!(
+            without_locations("no file /etc/x here at /a/b.rs:1."),
+            "no file /etc/x here"
         );
     }
 

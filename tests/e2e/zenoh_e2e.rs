@@ -566,3 +566,43 @@ fn signed_zenoh_edges_drop_what_anyone_else_publishes() {
     gs.stop();
     zenohd.finish(5 * SECOND);
 }
+
+/// Routers started before their Zenoh router: each says once that it cannot open the
+/// session and keeps trying (with the backoff of a TCP client); once the Zenoh router
+/// listens, they open, say so, and route.
+#[test]
+fn clients_started_before_their_zenoh_router_wait_for_it() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let block =
+        |receive: &str| format!("zenoh {{ connect {endpoint}; prefix {PREFIX}; {receive} }}");
+    let mut gs = Site::start("zenoh-early-gs", &block("receive all;"));
+    let mut edge = Site::start("zenoh-early-edge", &block(""));
+    for site in [&mut gs, &mut edge] {
+        site.router
+            .err
+            .wait_for(&format!("cannot open {LINK}: "), 10 * SECOND);
+    }
+    let mut zenohd = zenoh_router(&endpoint);
+    for site in [&mut gs, &mut edge] {
+        site.router
+            .err
+            .wait_for(&format!("{LINK} is back"), 10 * SECOND);
+    }
+    until(
+        "the vehicle's heartbeat at the ground station",
+        10 * SECOND,
+        || {
+            gs.send(&heartbeat(255));
+            edge.send(&heartbeat(1));
+            gs.has(is(0, 1)) && edge.has(is(0, 255))
+        },
+    );
+    for site in [edge, gs] {
+        let stopped = site.router.stop();
+        let warnings = (stopped.stderr.iter())
+            .filter(|l| l.contains("cannot open"))
+            .count();
+        assert_eq!(warnings, 1, "said once: {:#?}", stopped.stderr);
+    }
+    zenohd.finish(5 * SECOND);
+}
