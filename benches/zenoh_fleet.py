@@ -8,9 +8,10 @@ mode), all on this machine's loopback.
 Each edge router has one UDP server; one process per edge sends its vehicles' ATTITUDE
 (each vehicle a distinct system id, 10 frames/s, time_boot_ms = the frame's number) to
 it. MAVLink system ids are 8 bits, so the fleet is split into prefixes of at most 250
-vehicles, one edge router per prefix (`fleet/p0`, `fleet/p1`, ...); the ground-station
-router has one `zenoh` block per prefix (`receive all;`) and a UDP server whose ground
-station counts what arrives. Per N: 2 s of warm-up, then 10 s measured:
+vehicles, one edge router per prefix (`fleet/p0`, `fleet/p1`, ...), and one
+ground-station router per prefix (`receive all;`; one router's links share one address
+space, so system 1 of two prefixes would be one system to it), each with a UDP server
+whose ground station counts what arrives. Per N: 2 s of warm-up, then 10 s measured:
 
   delivered   frames/s at the ground station, and loss (sent - delivered) / sent
   latency     p50 / p99 from the vehicle's send to the ground station's receive
@@ -70,7 +71,7 @@ def frames_for(systems, count):
     return out
 
 
-def vehicles(port, systems, count, start_at, sent_q):
+def vehicles(prefix, port, systems, count, start_at, sent_q):
     """Sends `count` frames per system at 10 Hz each, spread evenly; returns send times."""
     frames = frames_for(systems, count)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -90,27 +91,34 @@ def vehicles(port, systems, count, start_at, sent_q):
                 time.sleep(delay)
             sent[i][n] = time.monotonic_ns()
             sock.sendto(frames[i][n], ("127.0.0.1", port))
-    sent_q.put((systems, sent))
+    sent_q.put((prefix, systems, sent))
 
 
-def ground_station(port, stop_at, recv_q, ready):
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 24)
-    sock.bind(("127.0.0.1", 0))
-    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    sock.sendto(mav.heartbeat_encode(6, 8, 0, 0, 4).pack(mav), ("127.0.0.1", port))
+def ground_station(ports, stop_at, recv_q, ready):
+    """One ground station per ground-station router (`ports`): (prefix, sys, n, t)."""
+    import selectors
+    sel = selectors.DefaultSelector()
+    for k, port in enumerate(ports):
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 24)
+        sock.bind(("127.0.0.1", 0))
+        sock.setblocking(False)
+        mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        sock.sendto(mav.heartbeat_encode(6, 8, 0, 0, 4).pack(mav), ("127.0.0.1", port))
+        sel.register(sock, selectors.EVENT_READ, k)
     ready.set()
-    sock.settimeout(0.2)
-    got = []  # (prefix index unknown here: the edge's port decides) (sys, n, t)
+    got = []
     while time.monotonic() < stop_at:
-        try:
-            data = sock.recv(4096)
-        except socket.timeout:
-            continue
-        t = time.monotonic_ns()
-        # One frame per datagram: v2 header (10 bytes), ATTITUDE is id 30.
-        if len(data) > 14 and data[0] == 0xFD and data[7] == 30:
-            got.append((data[5], int.from_bytes(data[10:14], "little") - 1, t))
+        for key, _ in sel.select(0.2):
+            while True:
+                try:
+                    data = key.fileobj.recv(4096)
+                except BlockingIOError:
+                    break
+                t = time.monotonic_ns()
+                # One frame per datagram: v2 header (10 bytes), ATTITUDE is id 30.
+                if len(data) > 14 and data[0] == 0xFD and data[7] == 30:
+                    got.append((key.data, data[5], int.from_bytes(data[10:14], "little") - 1, t))
     recv_q.put(got)
 
 
@@ -133,10 +141,13 @@ def run(exe, n):
         procs.append(p)
         return p
 
-    gs_port = free_port(socket.SOCK_DGRAM)
-    blocks = "".join(
-        f"zenoh {{ connect {endpoint}; prefix fleet/p{k}; receive all; }}\n" for k in range(prefixes))
-    gs = router("gs", f"udp {{ port {gs_port}; address 127.0.0.1; }}\n{blocks}default_action accept;\n")
+    gs_ports, gss = [], []
+    for k in range(prefixes):
+        port = free_port(socket.SOCK_DGRAM)
+        gss.append(router(f"gs{k}", f"udp {{ port {port}; address 127.0.0.1; }}\n"
+                          f"zenoh {{ connect {endpoint}; prefix fleet/p{k}; receive all; }}\n"
+                          "default_action accept;\n"))
+        gs_ports.append(port)
     edges = []
     for k in range(prefixes):
         port = free_port(socket.SOCK_DGRAM)
@@ -149,20 +160,21 @@ def run(exe, n):
     start_at = time.monotonic() + 1.0
     stop_at = start_at + WARMUP_S + MEASURE_S + 2.0
     sent_q, recv_q, ready = mp.Queue(), mp.Queue(), mp.Event()
-    gsp = mp.Process(target=ground_station, args=(gs_port, stop_at, recv_q, ready))
+    gsp = mp.Process(target=ground_station, args=(gs_ports, stop_at, recv_q, ready))
     gsp.start()
     ready.wait()
     senders = []
     for k, (_, port) in enumerate(edges):
         systems = list(range(1, 1 + min(PER_PREFIX, n - k * PER_PREFIX)))
-        s = mp.Process(target=vehicles, args=(port, systems, count, start_at, sent_q))
+        s = mp.Process(target=vehicles, args=(k, port, systems, count, start_at, sent_q))
         s.start()
         senders.append((k, s))
 
     # CPU over the measured window only.
     while time.monotonic() < start_at + WARMUP_S:
         time.sleep(0.01)
-    pids = {"gs": gs.pid, "zenoh router": zr.pid}
+    pids = {"zenoh router": zr.pid}
+    pids.update({f"gs{k}": p.pid for k, p in enumerate(gss)})
     pids.update({f"edge{k}": p.pid for k, (p, _) in enumerate(edges)})
     cpu0 = {k: cpu_ns(pid) for k, pid in pids.items()}
     while time.monotonic() < start_at + WARMUP_S + MEASURE_S:
@@ -170,10 +182,10 @@ def run(exe, n):
     cpu1 = {k: cpu_ns(pid) for k, pid in pids.items()}
 
     sent = {}
-    for k, _ in senders:
-        systems, times = sent_q.get()
+    for _ in senders:
+        prefix, systems, times = sent_q.get()
         for s, t in zip(systems, times):
-            sent.setdefault(s, []).append(t)
+            sent[(prefix, s)] = t
     got = recv_q.get()
     for _, s in senders:
         s.join()
@@ -184,27 +196,23 @@ def run(exe, n):
     zr.stdin.close()
     zr.wait()
 
-    # Latency and loss over the frames sent in the measured window. With several
-    # prefixes the same system id exists once per prefix: frames are matched by
-    # (system, number) against the sends of every prefix with that system, earliest
-    # unmatched first (the ids of different prefixes send at different phases).
+    # Latency and loss over the frames sent in the measured window.
     first = int(WARMUP_S * RATE_HZ)
-    window = set(range(first, count))
     received = {}
-    for sys_id, num, t in got:
-        if num in window:
-            received.setdefault((sys_id, num), []).append(t)
-    lat, sent_in_window, delivered = [], 0, 0
-    for sys_id, lists in sent.items():
-        for num in window:
-            sends = sorted(times[num] for times in lists)
-            sent_in_window += len(sends)
-            recvs = sorted(received.get((sys_id, num), []))
-            delivered += min(len(sends), len(recvs))
-            for s_t, r_t in zip(sends, recvs):
-                lat.append((r_t - s_t) / 1e6)
+    for prefix, sys_id, num, t in got:
+        if num >= first:
+            received.setdefault((prefix, sys_id, num), t)
+    lat = []
+    sent_in_window = len(sent) * (count - first)
+    for (prefix, sys_id), times in sent.items():
+        for num in range(first, count):
+            t = received.get((prefix, sys_id, num))
+            if t is not None:
+                lat.append((t - times[num]) / 1e6)
+    delivered = len(lat)
     lat.sort()
     frames = max(delivered, 1)
+    gs_cpu = sum(cpu1[f"gs{k}"] - cpu0[f"gs{k}"] for k in range(prefixes)) / prefixes
     row = {
         "vehicles": n,
         "edges": prefixes,
@@ -213,12 +221,12 @@ def run(exe, n):
         "loss": (sent_in_window - delivered) / max(sent_in_window, 1),
         "p50 ms": lat[len(lat) // 2] if lat else float("nan"),
         "p99 ms": lat[int(len(lat) * 0.99)] if lat else float("nan"),
-        "gs us/frame": (cpu1["gs"] - cpu0["gs"]) / frames / 1e3,
+        "gs us/frame": gs_cpu / max(1, frames / prefixes) / 1e3,
         "edge us/frame": statistics.mean(
             (cpu1[f"edge{k}"] - cpu0[f"edge{k}"]) / max(1, frames / prefixes) / 1e3
             for k in range(prefixes)),
         "zenohd us/frame": (cpu1["zenoh router"] - cpu0["zenoh router"]) / frames / 1e3,
-        "gs cpu %": (cpu1["gs"] - cpu0["gs"]) / MEASURE_S / 1e7,
+        "gs cpu %": gs_cpu / MEASURE_S / 1e7,
         "edge cpu %": statistics.mean(
             (cpu1[f"edge{k}"] - cpu0[f"edge{k}"]) for k in range(prefixes)) / MEASURE_S / 1e7,
         "zenohd cpu %": (cpu1["zenoh router"] - cpu0["zenoh router"]) / MEASURE_S / 1e7,
