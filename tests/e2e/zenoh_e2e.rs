@@ -606,3 +606,58 @@ fn clients_started_before_their_zenoh_router_wait_for_it() {
     }
     zenohd.finish(5 * SECOND);
 }
+
+/// A reload (SIGHUP) keeps a `zenoh` block that did not change, session and learned
+/// addresses included, and replaces one whose prefix changed: the edge then publishes
+/// under the new prefix, where the ground station's router (reloaded too) listens.
+#[test]
+fn a_reload_replaces_a_changed_zenoh_block_only() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let gs_block = |prefix: &str| {
+        format!("zenoh {{ mode peer; listen {endpoint}; prefix {prefix}; receive all; }}")
+    };
+    let edge_block =
+        |prefix: &str| format!("zenoh {{ mode peer; connect {endpoint}; prefix {prefix}; }}");
+    let mut gs = Site::start("zenoh-reload-gs", &gs_block(PREFIX));
+    let mut edge = Site::start("zenoh-reload-edge", &edge_block(PREFIX));
+    // Frames numbered from `base` on until one reaches the ground station: nothing sent
+    // before (still in a socket) counts.
+    let heard = |gs: &mut Site, edge: &mut Site, base: u32| {
+        let mut n = base;
+        until("the vehicle at the ground station", 30 * SECOND, || {
+            gs.send(&heartbeat(255));
+            edge.send(&numbered(1, n));
+            n += 1;
+            gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
+        });
+    };
+    heard(&mut gs, &mut edge, 1000);
+    let reload = |site: &mut Site, zenoh: &str| {
+        let config = std::fs::read_to_string(&site.router.config).expect("config");
+        let udp = config.lines().next().expect("the udp line");
+        std::fs::write(&site.router.config, format!("{udp}\n{zenoh}\n{ACCEPT_ALL}"))
+            .expect("write config");
+        site.router.signal(libc::SIGHUP);
+        site.router
+            .err
+            .wait_for("configuration reloaded: ", 10 * SECOND)
+    };
+    let same = reload(&mut gs, &gs_block(PREFIX));
+    assert!(same.contains("+0 interfaces, -0, 0 changed"), "{same}");
+    let changed = [
+        reload(&mut gs, &gs_block("fleet/other")),
+        reload(&mut edge, &edge_block("fleet/other")),
+    ];
+    for line in changed {
+        // The prefix is part of the block's identity: the old one goes, a new one comes.
+        assert!(line.contains("+1 interface, -1, 0 changed"), "{line}");
+    }
+    heard(&mut gs, &mut edge, 2000);
+    edge.router.stop();
+    let stopped = gs.router.stop();
+    assert!(
+        (stopped.stdout.iter()).any(|l| l.contains("new component 1.1 on zenoh fleet/other")),
+        "{:#?}",
+        stopped.stdout
+    );
+}
