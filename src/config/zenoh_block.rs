@@ -238,6 +238,25 @@ mod tests {
         );
     }
 
+    proptest::proptest! {
+        /// Whatever the values, a `zenoh` block loads or gets located errors that
+        /// render (spans on character boundaries), never a panic.
+        #[test]
+        fn any_values_load_or_are_located(a in "\\PC{0,20}", b in "[a-z/*:.\\[\\]0-9é]{0,20}") {
+            for src in [
+                format!("zenoh {{ connect {a}; listen {b}; prefix {b}; mode {a}; }}"),
+                format!("zenoh {{ mode peer; connect tcp/{b}; prefix {a}; receive {b}; }}"),
+            ] {
+                if let Err(errors) = crate::config::load(&src) {
+                    for e in &errors {
+                        proptest::prop_assert!(e.span.end <= src.len());
+                        let _ = e.render("f", &src);
+                    }
+                }
+            }
+        }
+    }
+
     /// Each mistake is located (in any build: the checks run either way).
     #[test]
     fn mistakes_are_located() {
