@@ -60,7 +60,66 @@ impl Engine {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::VecDeque;
+    use std::net::SocketAddr;
+    use std::time::Duration;
+
     use super::SystemSet;
+    use crate::config::{PeerLimits, load};
+    use crate::routing::{Engine, RouterOptions, Timestamp};
+    use crate::wire::encode::{Header, encode_v2};
+
+    fn heartbeat(system: u8) -> Vec<u8> {
+        let header = Header {
+            seq: 0,
+            system,
+            component: 1,
+        };
+        let mut out = Vec::new();
+        encode_v2(header, 0, &[1, 2, 3, 4, 5, 6, 7, 8, 9], None, &mut out).expect("encode");
+        out
+    }
+
+    /// A message interface (Zenoh's shape: one stream link, one frame per message) next
+    /// to a UDP server: its subscriptions follow the systems the UDP side reaches, until
+    /// their addresses expire; what came from it never goes back to it; a bad message
+    /// spoils nothing after it.
+    #[test]
+    fn a_message_interface_follows_the_systems_elsewhere() {
+        let config = load("default_action accept;").expect("config").config;
+        let mut e = Engine::new(&config, RouterOptions::default());
+        let t0 = Timestamp::ZERO;
+        let zenoh = e.add_stream_client("zenoh t".into(), "zenoh t", 0, t0);
+        e.stream_opened(zenoh, t0);
+        let udp = e.add_datagram_interface("udp".into(), 0, PeerLimits::default());
+        let peer = SocketAddr::from(([127, 0, 0, 1], 5000));
+        assert_eq!(e.systems_elsewhere(zenoh, t0), SystemSet::default());
+
+        e.handle_datagram(udp, peer, &heartbeat(3), t0);
+        e.handle_message(zenoh, &heartbeat(9)[..7], t0); // cut short: dropped
+        e.handle_message(zenoh, &heartbeat(9), t0);
+        let systems: Vec<u8> = e.systems_elsewhere(zenoh, t0).iter().collect();
+        assert_eq!(systems, [3], "system 9 is behind Zenoh itself");
+
+        // Vehicle 3's heartbeat went out to Zenoh; system 9's went to the UDP peer only.
+        let mut out = VecDeque::new();
+        e.poll_transmit(zenoh, t0, 16, &mut out);
+        assert_eq!(out.len(), 1);
+        assert_eq!(&out[0].packet[..], &heartbeat(3)[..]);
+        out.clear();
+        e.poll_transmit(udp, t0, 16, &mut out);
+        assert_eq!(out.len(), 1);
+        assert_eq!(&out[0].packet[..], &heartbeat(9)[..]);
+
+        // Addresses expire like any other link's: after 120 s of silence, nothing is
+        // reached elsewhere, and system 9 is forgotten on the Zenoh link too.
+        let later = t0 + Duration::from_secs(121);
+        e.handle_timeout(later);
+        assert_eq!(e.systems_elsewhere(zenoh, later), SystemSet::default());
+        let link = e.stream_link(zenoh).expect("its link");
+        let pool = e.router().link(link).expect("link").pool();
+        assert!(pool.is_empty(later));
+    }
 
     #[test]
     fn a_system_set_holds_every_id() {
