@@ -1,5 +1,7 @@
 //! End-to-end tests of the Zenoh interface on a real Zenoh network on loopback: a Zenoh
-//! router from the PyPI `eclipse-zenoh` package (`tests/py/zenoh_router.py`), mavtables
+//! router from the PyPI `eclipse-zenoh` package (`tests/py/zenoh_router.py`: Zenoh's own
+//! Rust implementation in a prebuilt wheel, whose sessions run in router mode; `zenohd`
+//! from crates.io would add a long build to every fresh test run), mavtables
 //! routers as its clients — three edge routers, each with a simulated vehicle behind a
 //! UDP link, and a ground-station router with a UDP ground station — and mavtables
 //! routers as Zenoh peers without a Zenoh router. An independent subscriber
