@@ -44,7 +44,7 @@ fuzz_target!(|data: &[u8]| {
                     config::Interface::Udp(u) => (&u.connect, &u.peers),
                     config::Interface::Tcp(t) => (&t.connect, &t.peers),
                     config::Interface::WebSocket(w) => (&None, &w.peers),
-                    config::Interface::Serial(_) => continue,
+                    config::Interface::Serial(_) | config::Interface::Zenoh(_) => continue,
                 };
                 assert!((1..=65535).contains(&peers.max_peers));
                 if let Some(remote) = connect {

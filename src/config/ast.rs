@@ -53,6 +53,13 @@ pub enum Item {
         /// Statements in order.
         settings: Vec<SocketSetting>,
     },
+    /// `zenoh { ... }`: a Zenoh interface (feature `zenoh`).
+    Zenoh {
+        /// The `zenoh` keyword.
+        keyword: Span,
+        /// Statements in order.
+        settings: Vec<ZenohSetting>,
+    },
     /// `serial { ... }`
     Serial {
         /// The `serial` keyword.
@@ -177,6 +184,26 @@ pub enum SocketSetting {
     Group(Span),
     /// `origin ORIGIN;` (websocket blocks): a web page origin whose pages may connect.
     Origin(Span),
+}
+
+/// A statement of a `zenoh` block; each span covers the value as written (checked by
+/// `super::zenoh_block`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ZenohSetting {
+    /// `mode client|peer;`
+    Mode(Span),
+    /// `connect ENDPOINT;` (repeatable), e.g. `tcp/127.0.0.1:7447`.
+    Connect(Span),
+    /// `listen ENDPOINT;` (repeatable).
+    Listen(Span),
+    /// `prefix KEY/EXPR;`: the first chunks of every key.
+    Prefix(Span),
+    /// `receive addressed|all;`: what the interface subscribes to.
+    Receive(Span),
+    /// `signing_key PATH;`
+    SigningKey(Span),
+    /// `allow_unsigned yes|no;`
+    AllowUnsigned(YesNo),
 }
 
 /// A statement of a `heartbeat` block; each span covers the value.

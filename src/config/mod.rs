@@ -28,6 +28,7 @@ pub(crate) mod sockets;
 pub(crate) mod stats_block;
 pub(crate) mod suggest;
 mod values;
+pub(crate) mod zenoh_block;
 
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};
@@ -38,7 +39,8 @@ pub use model::{
     Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,
     DefaultAction, Heartbeat, Host, Interface, InterfaceGroup, InterfaceSigning, IpRange,
     PeerLimits, QueueBounds, Recording, Remote, Rule, SIGNING_STATE_FILE, SerialInterface,
-    StatsEndpoint, TcpInterface, UdpInterface, WebSocketInterface,
+    StatsEndpoint, TcpInterface, UdpInterface, WebSocketInterface, ZenohInterface, ZenohMode,
+    ZenohReceive,
 };
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};

@@ -144,7 +144,7 @@ pub enum DefaultAction {
     Reject,
 }
 
-/// One `udp`, `tcp` or `serial` block.
+/// One `udp`, `tcp`, `serial` or `zenoh` block.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Interface {
     /// A UDP socket (server or client).
@@ -155,6 +155,8 @@ pub enum Interface {
     Tcp(TcpInterface),
     /// A WebSocket server: every connection a browser makes is a link.
     WebSocket(WebSocketInterface),
+    /// A Zenoh session: one link, frames published and subscribed by key.
+    Zenoh(ZenohInterface),
 }
 
 impl Interface {
@@ -165,7 +167,56 @@ impl Interface {
             Interface::Serial(s) => s.signing.as_ref(),
             Interface::Tcp(t) => t.signing.as_ref(),
             Interface::WebSocket(w) => w.signing.as_ref(),
+            Interface::Zenoh(z) => z.signing.as_ref(),
         }
+    }
+}
+
+/// How a Zenoh interface joins the Zenoh network (`mode client|peer;`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ZenohMode {
+    /// Through a Zenoh router it connects to (the default).
+    #[default]
+    Client,
+    /// Directly to other peers, by `connect` and `listen`.
+    Peer,
+}
+
+/// What a Zenoh interface subscribes to (`receive addressed|all;`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ZenohReceive {
+    /// Broadcasts and frames addressed to the systems behind the router (an edge; the
+    /// default): the subscriptions follow the systems its other links reach.
+    #[default]
+    Addressed,
+    /// Everything under the prefix (a ground-station site).
+    All,
+}
+
+/// A `zenoh { }` block with its defaults filled in.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ZenohInterface {
+    /// Client of a Zenoh router, or peer.
+    pub mode: ZenohMode,
+    /// Endpoints to connect to (`tcp/HOST:PORT`), as written.
+    pub connect: Vec<String>,
+    /// Endpoints to listen on, as written.
+    pub listen: Vec<String>,
+    /// The first chunks of every key (default `mavtables`).
+    pub prefix: String,
+    /// What it subscribes to.
+    pub receive: ZenohReceive,
+    /// MAVLink 2 signing, when the block has a `signing_key`.
+    pub signing: Option<InterfaceSigning>,
+}
+
+impl ZenohInterface {
+    /// The prefix when the block names none.
+    pub const DEFAULT_PREFIX: &'static str = "mavtables";
+
+    /// How messages and counters name it: `zenoh PREFIX`.
+    pub(crate) fn label(&self) -> String {
+        format!("zenoh {}", self.prefix)
     }
 }
 

@@ -15,6 +15,7 @@ const TOP_LEVEL: &[&str] = &[
     "udp",
     "tcp",
     "websocket",
+    "zenoh",
     "serial",
     "queue",
     "chain",
@@ -49,6 +50,15 @@ const SERIAL_STATEMENTS: &[&str] = &[
     "signing_key",
     "allow_unsigned",
     "group",
+];
+const ZENOH_STATEMENTS: &[&str] = &[
+    "mode",
+    "connect",
+    "listen",
+    "prefix",
+    "receive",
+    "signing_key",
+    "allow_unsigned",
 ];
 const QUEUE_STATEMENTS: &[&str] = &["link_bytes", "total_bytes"];
 const HEARTBEAT_STATEMENTS: &[&str] = &["system", "component", "interval"];
@@ -182,6 +192,14 @@ impl<'a> Parser<'a> {
                 self.c.word();
                 let settings = self.block(span, Self::socket_setting)?;
                 Ok(Item::WebSocket {
+                    keyword: span,
+                    settings,
+                })
+            }
+            "zenoh" => {
+                self.c.word();
+                let settings = self.block(span, Self::zenoh_setting)?;
+                Ok(Item::Zenoh {
                     keyword: span,
                     settings,
                 })
@@ -368,6 +386,40 @@ impl<'a> Parser<'a> {
         };
         self.semicolon(false)?;
         Ok(setting)
+    }
+
+    /// A statement of a `zenoh` block: its value is read as written, up to whitespace,
+    /// `;`, `#` or a brace (`super::zenoh_block` checks it).
+    fn zenoh_setting(&mut self) -> Result<ZenohSetting> {
+        let (span, word) = match self.c.peek_word() {
+            Some(found) => found,
+            None => return Err(self.stray("a statement or '}'")),
+        };
+        let expected = match word {
+            "mode" => "expected 'client' or 'peer'",
+            "connect" | "listen" => "expected a Zenoh endpoint, e.g. tcp/127.0.0.1:7447",
+            "prefix" => "expected a key prefix, e.g. fleet/alpha",
+            "receive" => "expected 'addressed' or 'all'",
+            "signing_key" => EXPECTED_KEY_PATH,
+            "allow_unsigned" => "",
+            _ => return Err(unsupported(span, word, ZENOH_STATEMENTS)),
+        };
+        self.c.word();
+        if word == "allow_unsigned" {
+            let value = self.yes_no(span)?;
+            self.semicolon(false)?;
+            return Ok(ZenohSetting::AllowUnsigned(value));
+        }
+        let value = self.path(expected)?;
+        self.semicolon(false)?;
+        Ok(match word {
+            "mode" => ZenohSetting::Mode(value),
+            "connect" => ZenohSetting::Connect(value),
+            "listen" => ZenohSetting::Listen(value),
+            "prefix" => ZenohSetting::Prefix(value),
+            "receive" => ZenohSetting::Receive(value),
+            _ => ZenohSetting::SigningKey(value),
+        })
     }
 
     /// `HOST:PORT` or `[IPV6]:PORT`: the value runs to whitespace, `;`, `#` or a brace.
@@ -1033,6 +1085,7 @@ fn unsupported(span: Span, word: &str, candidates: &[&str]) -> Diagnostic {
             ("udp", UDP_STATEMENTS),
             ("tcp", UDP_STATEMENTS),
             ("serial", SERIAL_STATEMENTS),
+            ("zenoh", ZENOH_STATEMENTS),
             ("queue", QUEUE_STATEMENTS),
             ("record", RECORD_STATEMENTS),
             ("heartbeat", HEARTBEAT_STATEMENTS),

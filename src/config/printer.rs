@@ -65,6 +65,21 @@ impl Printer<'_, '_> {
             Item::Udp { keyword, settings } => self.socket(*keyword, "udp", settings),
             Item::Tcp { keyword, settings } => self.socket(*keyword, "tcp", settings),
             Item::WebSocket { keyword, settings } => self.socket(*keyword, "websocket", settings),
+            Item::Zenoh { keyword, settings } => {
+                self.node(0, *keyword, "zenoh", None);
+                for s in settings {
+                    let (name, span) = match s {
+                        ZenohSetting::Mode(v) => ("mode", *v),
+                        ZenohSetting::Connect(v) => ("connect", *v),
+                        ZenohSetting::Listen(v) => ("listen", *v),
+                        ZenohSetting::Prefix(v) => ("prefix", *v),
+                        ZenohSetting::Receive(v) => ("receive", *v),
+                        ZenohSetting::SigningKey(v) => ("signing_key", *v),
+                        ZenohSetting::AllowUnsigned(v) => ("allow_unsigned", v.span),
+                    };
+                    self.node(1, span, name, Some(span));
+                }
+            }
             Item::Serial { keyword, settings } => {
                 self.node(0, *keyword, "serial", None);
                 for s in settings {

@@ -116,6 +116,12 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
                     interfaces.push(iface);
                 }
             }
+            Item::Zenoh { keyword, settings } => {
+                if let Some(z) = super::zenoh_block::check(ast, *keyword, settings, &mut cx.errors)
+                {
+                    interfaces.push(Interface::Zenoh(z));
+                }
+            }
             Item::Serial { keyword, settings } => {
                 let named: Vec<Span> = (settings.iter())
                     .filter_map(|s| match s {

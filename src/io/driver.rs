@@ -43,6 +43,12 @@ pub trait Driver {
         None
     }
 
+    /// True if its input arrives from threads of its own (not a descriptor), which ring
+    /// the loop's waker: it is then read whenever the waker rings.
+    fn woken(&self) -> bool {
+        false
+    }
+
     /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.
     fn close(&mut self) {}
 

@@ -4,7 +4,7 @@
 //!
 //! - `runtime`: the loop — wait, read, core, send, arm the one timer;
 //! - `driver`: what every transport driver does for the loop;
-//! - `udp`, `tcp`, `websocket`, `serial`: the drivers (`stream`: what serial and TCP share;
+//! - `udp`, `tcp`, `websocket`, `serial`, `zenoh` (feature `zenoh`): the drivers (`stream`: what serial and TCP share;
 //!   `resolve`: host names of clients);
 //! - `stats_server`: the HTTP statistics endpoint, on threads of its own;
 //! - `notify`: systemd's readiness, reload and watchdog notifications;
@@ -39,5 +39,7 @@ mod tcp;
 mod udp;
 mod websocket;
 mod writer_thread;
+#[cfg(feature = "zenoh")]
+mod zenoh;
 
 pub use runtime::run;

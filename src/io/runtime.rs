@@ -42,7 +42,8 @@ use crate::signing::clock::units_from_unix;
 const SIGNALS: Token = Token(usize::MAX - 1);
 /// Token of the timer.
 const TIMER: Token = Token(usize::MAX - 2);
-/// Token of the waker that look-ups of host names ring when they have an answer.
+/// Token of the waker that look-ups of host names ring when they have an answer, and
+/// drivers fed by threads (Zenoh) when they have input.
 const WAKER: Token = Token(usize::MAX - 3);
 /// How long queued packets may still be sent after SIGINT/SIGTERM.
 const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
@@ -83,6 +84,9 @@ struct Runtime {
     to_flush: Vec<usize>,
     /// Slots waiting for a look-up of their remote: flushed when the waker rings.
     opening: Vec<usize>,
+    /// Slots whose input comes from threads that ring the waker ([`Driver::woken`]):
+    /// read when it rings.
+    woken: Vec<usize>,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -297,6 +301,7 @@ impl Runtime {
     /// Puts `driver` in the loop and watches its descriptor.
     fn add(&mut self, driver: Box<dyn Driver>, ready: bool) {
         let interface = driver.interface();
+        let woken = driver.woken();
         let key = self.slots.insert(Slot {
             driver,
             registered: None,
@@ -312,6 +317,9 @@ impl Runtime {
         if self.slots[key].driver.deadline().is_some() {
             self.expiring.push(key);
         }
+        if woken {
+            self.woken.push(key);
+        }
         self.watch(key);
         if ready {
             self.mark_readable(key);
@@ -325,6 +333,7 @@ impl Runtime {
         };
         self.close(key);
         self.slots.try_remove(key);
+        self.woken.retain(|&k| k != key);
         if let Some(k) = self.slot_of.get_mut(interface.0) {
             *k = usize::MAX;
         }
@@ -368,8 +377,13 @@ impl Runtime {
         for key in opening {
             match self.slots.get_mut(key) {
                 Some(slot) if slot.opening && slot.driver.fd().is_none() => {
+                    if slot.driver.woken() {
+                        // Read at every ring: its `receive` hears how the opening went.
+                        slot.opening = false;
+                    } else {
+                        self.opening.push(key);
+                    }
                     self.mark_flush(key);
-                    self.opening.push(key);
                 }
                 Some(slot) => slot.opening = false,
                 None => {}
@@ -560,8 +574,14 @@ impl Runtime {
                             }
                         }
                     }
-                    // A look-up has its answer; the drivers' flush takes it below.
-                    WAKER => self.flush_opening(),
+                    // A look-up has its answer (the drivers' flush takes it below), or
+                    // a driver fed by threads has input.
+                    WAKER => {
+                        self.flush_opening();
+                        for key in self.woken.clone() {
+                            self.mark_readable(key);
+                        }
+                    }
                     TIMER => {
                         self.timer.acknowledge();
                         // Fired: whatever is due next is armed afresh.
@@ -789,6 +809,7 @@ fn start(
         readable: VecDeque::new(),
         to_flush: Vec::new(),
         opening: Vec::new(),
+        woken: Vec::new(),
         timer,
         timer_armed: None,
         signals,

@@ -30,6 +30,7 @@ mod configure;
 mod flight_log;
 mod input;
 mod interfaces;
+mod messages;
 mod paths;
 mod ready;
 mod report;
@@ -70,6 +71,7 @@ use crate::signing::{Edge, Signing, SigningKey};
 use crate::stats::{History, StatsSnapshot};
 
 pub use configure::{Reconfigured, Request};
+pub use messages::SystemSet;
 
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);

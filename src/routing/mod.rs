@@ -54,7 +54,7 @@ pub(crate) mod stale;
 pub use crate::time::Timestamp;
 pub use counters::{InterfaceReport, LinkCounters, LinkReport};
 pub use dispatch::Decision;
-pub use engine::{Engine, FORGET_AFTER, Reconfigured, Request, SEND_TURN, Transmit};
+pub use engine::{Engine, FORGET_AFTER, Reconfigured, Request, SEND_TURN, SystemSet, Transmit};
 pub use event::{Event, LinkRef, PacketSummary};
 pub use interface::InterfaceId;
 pub use link::{GroupId, Link, LinkId, LinkKind};

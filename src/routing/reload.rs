@@ -39,6 +39,9 @@ pub(crate) enum Identity {
     WebSocketServer(SocketAddr),
     /// A serial port at this path (as written).
     Serial(String),
+    /// A Zenoh session publishing under this prefix, in this mode, with these
+    /// endpoints.
+    Zenoh(String),
 }
 
 impl Identity {
@@ -57,6 +60,10 @@ impl Identity {
                 Identity::WebSocketServer(SocketAddr::new(w.local_address(), w.port))
             }
             Interface::Serial(s) => Identity::Serial(s.device.clone()),
+            Interface::Zenoh(z) => Identity::Zenoh(format!(
+                "{:?} {} {:?} {:?}",
+                z.mode, z.prefix, z.connect, z.listen
+            )),
         }
     }
 }
@@ -157,6 +164,7 @@ fn in_place(iface: &Interface) -> (Option<u64>, Option<bool>, Option<&PeerLimits
         Interface::Tcp(t) => (t.max_bitrate, allow_unsigned, Some(&t.peers)),
         Interface::WebSocket(w) => (w.max_bitrate, allow_unsigned, Some(&w.peers)),
         Interface::Serial(s) => (s.max_bitrate, allow_unsigned, None),
+        Interface::Zenoh(_) => (None, allow_unsigned, None),
     }
 }
 
@@ -174,6 +182,7 @@ fn fixed_part(iface: &Interface) -> Interface {
             (w.max_bitrate, w.signing, w.peers) = (None, None, PeerLimits::default());
         }
         Interface::Serial(s) => (s.max_bitrate, s.signing) = (None, None),
+        Interface::Zenoh(z) => z.signing = None,
     }
     f
 }

@@ -269,7 +269,9 @@ fn statement_errors_are_located() {
         "{misplaced}"
     );
     assert!(
-        misplaced.contains("note: 'signing_key' belongs in a 'udp' or 'tcp' or 'serial' block"),
+        misplaced.contains(
+            "note: 'signing_key' belongs in a 'udp' or 'tcp' or 'serial' or 'zenoh' block"
+        ),
         "{misplaced}"
     );
     assert!(errors("queue { allow_unsigned yes; }").contains("belongs in a 'udp'"));

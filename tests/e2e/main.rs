@@ -35,3 +35,5 @@ mod tcp_faults_e2e;
 mod transports_e2e;
 mod websocket_browser;
 mod websocket_e2e;
+#[cfg(feature = "zenoh")]
+mod zenoh_e2e;

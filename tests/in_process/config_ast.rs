@@ -190,3 +190,14 @@ fn ast_checks_syntax_only() {
         ":001:  udp\n:001:  |  port 99999\n:002:  chain default\n:002:  |  call nowhere\n:002:  |  |  condition\n:002:  |  |  |  packet_type NOT_A_MSG\n"
     );
 }
+
+#[test]
+fn zenoh_statements_print_raw() {
+    assert_eq!(
+        tree(
+            "zenoh {\n    mode peer;\n    listen tcp/127.0.0.1:7448;\n    connect tcp/[::1]:7447;\n    prefix fleet/alpha;\n    receive all;\n    signing_key k.key;\n    allow_unsigned yes;\n}"
+        ),
+        ":001:  zenoh\n:002:  |  mode peer\n:003:  |  listen tcp/127.0.0.1:7448\n:004:  |  connect tcp/[::1]:7447\n:005:  |  prefix fleet/alpha\n:006:  |  receive all\n:007:  |  signing_key k.key\n:008:  |  allow_unsigned yes\n"
+    );
+    assert_eq!(tree("zenoh {}"), ":001:  zenoh\n");
+}

@@ -85,3 +85,39 @@ fn the_signing_deployments_are_valid() {
         assert!(keyed.count() >= 1, "every deployment has a key:\n{block}");
     }
 }
+
+/// The `zenoh` examples of docs/configuration.md load in a router built with Zenoh, and
+/// are refused, located and with the way to build one, in a router built without.
+#[test]
+fn the_zenoh_examples_are_valid_or_refused_with_the_way_out() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/configuration.md"
+    ))
+    .expect("docs/configuration.md");
+    let section = doc
+        .split("## `zenoh` blocks")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("zenoh section");
+    let example = section.split("```").nth(1).expect("an example");
+    let lines: Vec<&str> = example.lines().filter(|l| l.starts_with("zenoh")).collect();
+    assert_eq!(lines.len(), 4);
+    for line in lines {
+        let loaded = mavtables::config::load(line);
+        if cfg!(feature = "zenoh") {
+            if let Err(e) = loaded {
+                panic!("{}", mavtables::config::render_errors("doc", line, &e));
+            }
+        } else {
+            let e = loaded.map(|_| ()).expect_err("no zenoh in this build");
+            let text = mavtables::config::render_errors("doc", line, &e);
+            assert!(text.contains("doc:1:1"), "{text}");
+            assert!(text.contains("built without Zenoh"), "{text}");
+            assert!(
+                text.contains("cargo build --release --features zenoh"),
+                "{text}"
+            );
+        }
+    }
+}

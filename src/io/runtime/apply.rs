@@ -39,6 +39,17 @@ pub(super) fn driver_for(
         Interface::Tcp(t) if t.connect.is_none() => Box::new(TcpListenerDriver::bind(t, id)?),
         Interface::Tcp(t) => Box::new(TcpStreamDriver::client(t, id, waker.clone())),
         Interface::WebSocket(w) => Box::new(websocket::listener(w, id)?),
+        #[cfg(feature = "zenoh")]
+        Interface::Zenoh(z) => {
+            Box::new(super::super::zenoh::ZenohDriver::new(z, id, waker.clone()))
+        }
+        // The configuration refuses a `zenoh` block in a router built without it.
+        #[cfg(not(feature = "zenoh"))]
+        Interface::Zenoh(_) => {
+            return Err(io::Error::other(
+                "zenoh: this router was built without Zenoh (cargo build --release --features zenoh)",
+            ));
+        }
     })
 }
 

@@ -327,6 +327,9 @@ impl Engine {
                 let rate = w.max_bitrate.unwrap_or(0);
                 self.add_listener_of("ws", w.label(), w.peers.clone(), rate)
             }
+            // One link for the whole Zenoh network: Zenoh routes between its sessions
+            // itself, so what came from it never goes back to it.
+            Interface::Zenoh(z) => self.add_stream_client(z.label(), &z.label(), 0, now),
         };
         if let (Some(key), Some(s)) = (key, iface.signing()) {
             let link_id = u8::try_from(index % 256).unwrap_or(0);
@@ -350,6 +353,7 @@ impl Engine {
             Interface::Tcp(t) => (t.max_bitrate, Some(&t.peers)),
             Interface::WebSocket(w) => (w.max_bitrate, Some(&w.peers)),
             Interface::Serial(s) => (s.max_bitrate, None),
+            Interface::Zenoh(_) => (None, None),
         };
         let signing = iface.signing().zip(key).map(|(s, key)| {
             let slot = self.core.signing.add_key(key.clone());
