@@ -99,9 +99,13 @@ pub fn fetch(endpoint: &Endpoint) -> Result<Value, String> {
 }
 
 /// Prints the statistics once.
-pub(crate) fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), String> {
+pub(crate) fn show(
+    endpoint: &Endpoint,
+    view: &render::View,
+    out: &mut dyn Write,
+) -> Result<(), String> {
     let stats = fetch(endpoint)?;
-    out.write_all(render::render(&stats, &endpoint.url()).as_bytes())
+    out.write_all(render::render(&stats, &endpoint.url(), view).as_bytes())
         .and_then(|()| out.flush())
         .map_err(|e| format!("writing output: {e}"))
 }
@@ -112,6 +116,7 @@ pub(crate) fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), Strin
 /// A router that does not answer is shown as such and asked again a second later.
 pub(crate) fn watch(
     endpoint: &Endpoint,
+    view: &render::View,
     out: &mut dyn Write,
     terminal: bool,
     stop: &AtomicBool,
@@ -120,7 +125,7 @@ pub(crate) fn watch(
         // Alternate screen, cursor hidden.
         out.write_all(b"\x1b[?1049h\x1b[?25l")?;
     }
-    let result = watch_loop(endpoint, out, terminal, stop);
+    let result = watch_loop(endpoint, view, out, terminal, stop);
     if terminal {
         // Back to the normal screen, cursor shown: the shell is as it was.
         let _ = out.write_all(b"\x1b[?25h\x1b[?1049l");
@@ -131,6 +136,7 @@ pub(crate) fn watch(
 
 fn watch_loop(
     endpoint: &Endpoint,
+    view: &render::View,
     out: &mut dyn Write,
     terminal: bool,
     stop: &AtomicBool,
@@ -139,7 +145,7 @@ fn watch_loop(
     while !stop.load(Ordering::Relaxed) {
         let started = Instant::now();
         let text = match fetch(endpoint) {
-            Ok(stats) => render::render(&stats, &endpoint.url()),
+            Ok(stats) => render::render(&stats, &endpoint.url(), view),
             Err(e) => format!("router not answering: {e}\n"),
         };
         if terminal {

@@ -119,6 +119,17 @@ fn counts_of_a_scripted_scenario_exactly() {
     send(&vehicle, &attitude(1, 10));
     assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1, "ATTITUDE 10");
     stats_router::wait_quiet(port);
+    // Then until every link has been silent for 5 samples, so its state is certain.
+    eventually("every link silent", Duration::from_secs(15), || {
+        stats_router::stats(port)["links"]
+            .as_array()
+            .is_some_and(|links| {
+                links.iter().all(|l| {
+                    let h = l["history_in_fps"].as_array().cloned().unwrap_or_default();
+                    h.len() >= 5 && h[h.len() - 5..].iter().all(|v| v.as_f64() == Some(0.0))
+                })
+            })
+    });
 
     // Rule 0 decided the intruder's 3 HEARTBEATs for 2 destinations each (6 × 21 bytes);
     // rule 1 the vehicle's HEARTBEAT and 11 ATTITUDE for the ground station and the last
@@ -146,10 +157,10 @@ chain default
 
 default_action reject: 0 packets, 0 bytes
 
-link             interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
-{g}  udp 127.0.0.1:{ground}          1          12   0.0    0.0         0          0      4      0          72  255.1
-{v}  udp 127.0.0.1:{air}         12           0   0.0    0.0         0          0      3      0           0  1.1
-{x}  udp 127.0.0.1:{air}          3           1   0.0    0.0         0          0      0      0          72  2.1
+link             state   interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
+{g}  drops   udp 127.0.0.1:{ground}          1          12   0.0    0.0         0          0      4      0          72  255.1
+{v}  drops   udp 127.0.0.1:{air}         12           0   0.0    0.0         0          0      3      0           0  1.1
+{x}  silent  udp 127.0.0.1:{air}          3           1   0.0    0.0         0          0      0      0          72  2.1
   drops of {g}: filter rejected 3, no route 1
   drops of {v}: filter rejected 3
 "
@@ -363,4 +374,100 @@ fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
     assert!(text.starts_with("\x1b[?1049h\x1b[?25l\x1b[H"), "{text:?}");
     assert!(text.matches("\x1b[H").count() >= 2, "{text:?}");
     assert!(text.ends_with("\x1b[?25h\x1b[?1049l"), "{text:?}");
+}
+
+/// The order `mavtables stats` and the status page show the links of the fleet fixture
+/// in: troubled first, then the busiest.
+fn fleet_order(links: usize, filter: impl Fn(usize) -> bool) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..links).filter(|&i| filter(i)).collect();
+    order.sort_by(|&a, &b| {
+        common::fleet::troubled(b)
+            .cmp(&common::fleet::troubled(a))
+            .then(common::fleet::rate_in(b).total_cmp(&common::fleet::rate_in(a)))
+    });
+    order
+}
+
+/// Rows of the links table in `out`: (name, state).
+fn link_rows(out: &str) -> Vec<(String, String)> {
+    out.lines()
+        .skip_while(|l| !l.starts_with("link "))
+        .skip(1)
+        .take_while(|l| !l.is_empty() && !l.starts_with(' ') && !l.starts_with('('))
+        .map(|l| {
+            let mut w = l.split_whitespace();
+            (
+                w.next().unwrap_or_default().to_string(),
+                w.next().unwrap_or_default().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_fleet_of_a_thousand_links_top_and_filter() {
+    use common::fleet;
+    let body = fleet::stats(1000, 1, 10).to_string();
+    let server = HttpFixture::start(move |_, _| json(body.clone()));
+    let url = server.url();
+    let state = |i: usize| {
+        if fleet::drops(i) {
+            "drops"
+        } else if fleet::gaps(i) {
+            "gaps"
+        } else if fleet::silent(i) {
+            "silent"
+        } else {
+            "ok"
+        }
+    };
+    let expect = |order: &[usize]| -> Vec<(String, String)> {
+        order
+            .iter()
+            .map(|&i| (fleet::name(i), state(i).to_string()))
+            .collect()
+    };
+
+    // Every link, troubled first (each with its state), then the busiest.
+    let (code, out, err) = stats(&["--url", &url]);
+    assert_eq!(code, Some(0), "{err}");
+    let all = fleet_order(1000, |_| true);
+    assert_eq!(link_rows(&out), expect(&all));
+    let troubled = (0..1000).filter(|&i| fleet::troubled(i)).count();
+    assert!((20..100).contains(&troubled), "{troubled}");
+    assert!(!out.contains("hidden"), "nothing is hidden without --top");
+
+    // --top 5: the five first of that order and how many are hidden.
+    let (code, out, err) = stats(&["--url", &url, "--top", "5"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(link_rows(&out), expect(&all[..5]), "{out}");
+    assert!(link_rows(&out).iter().all(|(_, s)| s != "ok"), "{out}");
+    assert!(
+        out.contains("(links: 5 of 1000 shown; 995 more hidden by --top)\n"),
+        "{out}"
+    );
+
+    // --filter: the links whose name contains the text (10.0.3.x: links 768 to 999).
+    let (code, out, err) = stats(&["--url", &url, "--filter", "10.0.3.", "--top", "3"]);
+    assert_eq!(code, Some(0), "{err}");
+    let third = fleet_order(1000, |i| fleet::name(i).contains("10.0.3."));
+    assert_eq!(third.len(), 232);
+    assert_eq!(link_rows(&out), expect(&third[..3]), "{out}");
+    assert!(
+        out.contains(
+            "(links: 3 of 1000 shown; 229 more hidden by --top, 768 not matching --filter)\n"
+        ),
+        "{out}"
+    );
+    // A source's address finds its link.
+    let (code, out, err) = stats(&["--url", &url, "--filter", &fleet::source(5)]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        link_rows(&out).contains(&(fleet::name(5), "gaps".to_string())),
+        "{out}"
+    );
+    // A bad --top is one line.
+    let (code, _, err) = stats(&["--url", &url, "--top", "many"]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("--top 'many': expected a number"), "{err}");
 }
