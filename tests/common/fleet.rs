@@ -94,3 +94,28 @@ pub fn stats(links: usize, n: u64, samples: usize) -> Value {
         "sources": sources, "sequence_gaps": gap_list, "recording": null
     })
 }
+
+/// The links of a fleet of `links` that pass `keep`, in the order `mavtables stats` and
+/// the status page show them by default: troubled first, then the busiest.
+pub fn order(links: usize, keep: impl Fn(usize) -> bool) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..links).filter(|&i| keep(i)).collect();
+    order.sort_by(|&a, &b| {
+        troubled(b)
+            .cmp(&troubled(a))
+            .then(rate_in(b).total_cmp(&rate_in(a)))
+    });
+    order
+}
+
+/// The state of link `i` as both clients name it.
+pub fn state(i: usize) -> &'static str {
+    if drops(i) {
+        "drops"
+    } else if gaps(i) {
+        "gaps"
+    } else if silent(i) {
+        "silent"
+    } else {
+        "ok"
+    }
+}

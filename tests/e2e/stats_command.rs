@@ -376,18 +376,6 @@ fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
     assert!(text.ends_with("\x1b[?25h\x1b[?1049l"), "{text:?}");
 }
 
-/// The order `mavtables stats` and the status page show the links of the fleet fixture
-/// in: troubled first, then the busiest.
-fn fleet_order(links: usize, filter: impl Fn(usize) -> bool) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..links).filter(|&i| filter(i)).collect();
-    order.sort_by(|&a, &b| {
-        common::fleet::troubled(b)
-            .cmp(&common::fleet::troubled(a))
-            .then(common::fleet::rate_in(b).total_cmp(&common::fleet::rate_in(a)))
-    });
-    order
-}
-
 /// Rows of the links table in `out`: (name, state).
 fn link_rows(out: &str) -> Vec<(String, String)> {
     out.lines()
@@ -410,28 +398,17 @@ fn a_fleet_of_a_thousand_links_top_and_filter() {
     let body = fleet::stats(1000, 1, 10).to_string();
     let server = HttpFixture::start(move |_, _| json(body.clone()));
     let url = server.url();
-    let state = |i: usize| {
-        if fleet::drops(i) {
-            "drops"
-        } else if fleet::gaps(i) {
-            "gaps"
-        } else if fleet::silent(i) {
-            "silent"
-        } else {
-            "ok"
-        }
-    };
     let expect = |order: &[usize]| -> Vec<(String, String)> {
         order
             .iter()
-            .map(|&i| (fleet::name(i), state(i).to_string()))
+            .map(|&i| (fleet::name(i), fleet::state(i).to_string()))
             .collect()
     };
 
     // Every link, troubled first (each with its state), then the busiest.
     let (code, out, err) = stats(&["--url", &url]);
     assert_eq!(code, Some(0), "{err}");
-    let all = fleet_order(1000, |_| true);
+    let all = fleet::order(1000, |_| true);
     assert_eq!(link_rows(&out), expect(&all));
     let troubled = (0..1000).filter(|&i| fleet::troubled(i)).count();
     assert!((20..100).contains(&troubled), "{troubled}");
@@ -450,7 +427,7 @@ fn a_fleet_of_a_thousand_links_top_and_filter() {
     // --filter: the links whose name contains the text (10.0.3.x: links 768 to 999).
     let (code, out, err) = stats(&["--url", &url, "--filter", "10.0.3.", "--top", "3"]);
     assert_eq!(code, Some(0), "{err}");
-    let third = fleet_order(1000, |i| fleet::name(i).contains("10.0.3."));
+    let third = fleet::order(1000, |i| fleet::name(i).contains("10.0.3."));
     assert_eq!(third.len(), 232);
     assert_eq!(link_rows(&out), expect(&third[..3]), "{out}");
     assert!(

@@ -1,0 +1,254 @@
+//! The status page at fleet scale: a fixture serves `/stats` of 1,000 generated links
+//! (tests/common/fleet.rs) and headless Chromium runs the page. A small driver script,
+//! added to the page by the fixture, clicks and types as a user would and reports what
+//! the page then shows (and how long its refreshes took) to the fixture's `/report`.
+
+use crate::common;
+
+use common::browser;
+use common::fleet;
+use common::http_fixture::{Answer, HttpFixture};
+use common::router::Scratch;
+use serde_json::Value;
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+const PAGE: &str = include_str!("../../src/stats/page.html");
+const LINKS: usize = 1000;
+
+/// Clicks and types on the page once it has drawn, then reports a JSON object of what
+/// it saw after each step to `report?JSON`.
+const DRIVER: &str = r##"<script>
+"use strict";
+(async () => {
+  const out = {};
+  const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+  const main = document.getElementById("main");
+  const refreshes = () => Number(main.getAttribute("data-refreshes") || 0);
+  const rows = () => [...document.querySelectorAll("#links tbody tr")].map((tr) =>
+    [tr.getAttribute("data-link"), tr.getAttribute("data-state"),
+     tr.querySelector(".rate-in-fps").textContent]);
+  const note = () => document.getElementById("links-note");
+  try {
+    while (refreshes() < 1) await sleep(20);
+    out.first = rows();
+    out.total = note().getAttribute("data-total");
+    out.hidden = note().getAttribute("data-hidden");
+    document.querySelector('th[data-sort="in"]').click();
+    out.in_desc = rows();
+    document.querySelector('th[data-sort="in"]').click();
+    out.in_asc = rows();
+    out.in_asc_sort = document.querySelector('th[data-sort="in"]').getAttribute("aria-sort");
+    const box = document.getElementById("filter");
+    box.value = "10.0.3.";
+    box.dispatchEvent(new Event("input"));
+    out.filtered = rows();
+    out.filtered_hidden = note().getAttribute("data-hidden");
+    document.querySelector("#links tbody tr:nth-child(2)").click();
+    const chart = document.querySelector("#charts section[data-chart]");
+    out.chart = chart && [chart.getAttribute("data-chart"),
+      chart.querySelector("svg.chart").getAttribute("data-points"),
+      chart.querySelectorAll("polyline").length];
+    out.selected = [...document.querySelectorAll("#links tbody tr.sel")].map((tr) => tr.getAttribute("data-link"));
+    out.hash = location.hash;
+    // The rows must survive the next refreshes as they are.
+    const seen = refreshes();
+    while (refreshes() < seen + 2) await sleep(20);
+    out.after_refresh = rows();
+    while (refreshes() < 10) await sleep(50);
+    out.refresh_ms = main.getAttribute("data-refresh-ms");
+  } catch (e) {
+    out.error = String(e && e.stack || e);
+  }
+  fetch("report?" + encodeURIComponent(JSON.stringify(out)));
+})();
+</script>"##;
+
+/// A fixture serving the page (with `driver` added) and the fleet's statistics; each
+/// `/report?JSON` is sent to the returned receiver.
+fn serve(driver: &'static str) -> (HttpFixture, mpsc::Receiver<Value>) {
+    // Three pictures of the fleet, served in turn: counters move, the order does not.
+    let bodies: Vec<Vec<u8>> = (1..=3)
+        .map(|n| fleet::stats(LINKS, n, 300).to_string().into_bytes())
+        .collect();
+    let page = PAGE.replace("</body>", &format!("{driver}</body>"));
+    let (tx, rx) = mpsc::channel();
+    let tx = Arc::new(Mutex::new(tx));
+    let server = HttpFixture::start(move |path, n| {
+        if path == "/" || path.starts_with("/#") {
+            Answer::Http(200, "text/html; charset=utf-8", page.clone().into_bytes())
+        } else if path == "/stats" {
+            Answer::Http(200, "application/json", bodies[n % 3].clone())
+        } else if let Some(q) = path.strip_prefix("/report?") {
+            let text = percent_decode(q);
+            let v = serde_json::from_str(&text).unwrap_or(Value::String(text));
+            let _ = tx.lock().map(|t| t.send(v));
+            Answer::Http(200, "text/plain", b"ok".to_vec())
+        } else {
+            Answer::Http(404, "text/plain", b"not found".to_vec())
+        }
+    });
+    (server, rx)
+}
+
+/// `%XX` escapes decoded (as `encodeURIComponent` writes them).
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() + 1 {
+            if let Ok(x) = u8::from_str_radix(s.get(i + 1..i + 3).unwrap_or(""), 16) {
+                out.push(x);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// The rows of a report step: (name, state, in/s text).
+fn rows(report: &Value, step: &str) -> Vec<(String, String, String)> {
+    report[step]
+        .as_array()
+        .unwrap_or_else(|| panic!("no {step} in {report}"))
+        .iter()
+        .map(|r| {
+            let s = |i: usize| r[i].as_str().unwrap_or_default().to_string();
+            (s(0), s(1), s(2))
+        })
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn a_thousand_links_table_sort_filter_charts_fragment_and_refresh_time() {
+    let scratch = Scratch::new("page-fleet");
+    let (server, reports) = serve(DRIVER);
+    let browser = browser::open(&scratch, &format!("{}/", server.url()));
+    let report = reports
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the driver's report within 60 s");
+    drop(browser);
+    assert!(report.get("error").is_none(), "{report}");
+
+    // 100 rows of 1,000, troubled first (each with its state), then the busiest.
+    let first = rows(&report, "first");
+    assert_eq!(first.len(), 100, "{report}");
+    assert_eq!(report["total"], "1000");
+    assert_eq!(report["hidden"], "900");
+    let expected: Vec<(String, String)> = fleet::order(LINKS, |_| true)[..100]
+        .iter()
+        .map(|&i| (fleet::name(i), fleet::state(i).to_string()))
+        .collect();
+    let got: Vec<(String, String)> = first.iter().map(|r| (r.0.clone(), r.1.clone())).collect();
+    assert_eq!(got, expected);
+    let troubled = (0..LINKS).filter(|&i| fleet::troubled(i)).count();
+    assert!(first[..troubled].iter().all(|r| r.1 != "ok"));
+    assert_eq!(first[troubled].1, "ok");
+
+    // A click on "in/s" sorts by it, the busiest first; another, the quietest first.
+    let rate = |r: &(String, String, String)| r.2.parse::<f64>().expect("a rate");
+    let desc = rows(&report, "in_desc");
+    let mut busiest: Vec<usize> = (0..LINKS).collect();
+    busiest.sort_by(|&a, &b| fleet::rate_in(b).total_cmp(&fleet::rate_in(a)));
+    assert_eq!(desc[0].0, fleet::name(busiest[0]), "{report}");
+    assert!(desc.windows(2).all(|w| rate(&w[0]) >= rate(&w[1])));
+    let asc = rows(&report, "in_asc");
+    assert!(asc.windows(2).all(|w| rate(&w[0]) <= rate(&w[1])));
+    assert_eq!(asc[0].1, "silent");
+    assert_eq!(report["in_asc_sort"], "ascending");
+
+    // The filter narrows the table to the links 768 to 999 (10.0.3.x).
+    let filtered = rows(&report, "filtered");
+    assert_eq!(filtered.len(), 100);
+    assert!(
+        filtered.iter().all(|r| r.0.starts_with("10.0.3.")),
+        "{report}"
+    );
+    assert_eq!(
+        report["filtered_hidden"], "900",
+        "132 beyond 100 and 768 others"
+    );
+
+    // Selecting the second row charts that link, from its 300 samples.
+    let chosen = &filtered[1].0;
+    assert_eq!(
+        report["chart"][0].as_str(),
+        Some(chosen.as_str()),
+        "{report}"
+    );
+    assert_eq!(report["chart"][1], "300");
+    assert_eq!(report["chart"][2], 2, "in and out");
+    assert_eq!(report["selected"][0].as_str(), Some(chosen.as_str()));
+    // Refreshes keep the view.
+    let after: Vec<String> = rows(&report, "after_refresh")
+        .into_iter()
+        .map(|r| r.0)
+        .collect();
+    let before: Vec<String> = filtered.iter().map(|r| r.0.clone()).collect();
+    assert_eq!(after, before);
+
+    // The whole refresh (request, JSON of 1,000 links with 300 samples each, drawing),
+    // as the page measured it.
+    let times: Vec<f64> = report["refresh_ms"]
+        .as_str()
+        .unwrap_or_default()
+        .split_whitespace()
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    assert!(times.len() >= 8, "{report}");
+    let (med, max) = (
+        median(times.clone()),
+        times.iter().copied().fold(0.0, f64::max),
+    );
+    println!(
+        "status page, 1,000 links: whole refresh median {med:.1} ms, max {max:.1} ms over {} refreshes",
+        times.len()
+    );
+    assert!(med < 600.0, "median refresh {med} ms: {times:?}");
+
+    // The fragment restores the view: reloaded from the address alone (no driver), the
+    // page shows the same sort, filter and selection.
+    let hash = report["hash"].as_str().expect("hash").to_string();
+    assert!(
+        hash.contains("sort=in") && hash.contains("dir=asc"),
+        "{hash}"
+    );
+    assert!(
+        hash.contains("filter=10.0.3.") && hash.contains("sel="),
+        "{hash}"
+    );
+    let (plain, _) = serve("");
+    let dom = browser::dom(&scratch, &format!("{}/{hash}", plain.url()), 3000);
+    let names: Vec<&str> = dom
+        .split("<tr data-link=\"")
+        .skip(1)
+        .filter_map(|r| r.split('"').next())
+        .collect();
+    assert_eq!(names, before, "the same rows in the same order");
+    assert!(
+        dom.contains(&format!("<tr data-link=\"{chosen}\" data-state=")),
+        "{dom}"
+    );
+    assert!(
+        dom.contains(&format!(
+            "<section class=\"chart-card\" data-chart=\"{chosen}\""
+        )),
+        "{dom}"
+    );
+    assert!(
+        dom.contains("data-sort=\"in\" class=\"n\" title=\"sort by in/s\" aria-sort=\"ascending\""),
+        "{dom}"
+    );
+    drop(plain);
+    drop(server);
+}
