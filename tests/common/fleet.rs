@@ -54,7 +54,8 @@ pub fn stats(links: usize, n: u64, samples: usize) -> Value {
                     if silent(i) && s + 10 >= samples {
                         0.0
                     } else {
-                        ((fps + ((s + i) % 5) as f64) * 10.0).round() / 10.0
+                        let wave = ((s as f64 / 9.0) + i as f64).sin() * 0.3 + 0.7;
+                        (fps * wave * 10.0).round() / 10.0
                     }
                 })
                 .collect();
