@@ -253,7 +253,7 @@ fn a_thousand_links_table_sort_filter_charts_fragment_and_refresh_time() {
     );
 
     // A screenshot for the docs: two troubled links charted (docs/status-page-fleet.png
-    // is this, kept with MAVTABLES_KEEP_SCREENSHOT=PATH).
+    // is this, kept with MAVTABLES_KEEP_FLEET_SCREENSHOT=PATH).
     let png = scratch.dir.join("status-page-fleet.png");
     let shot = format!(
         "{}/#sel={}&sel={}",
@@ -269,7 +269,7 @@ fn a_thousand_links_table_sort_filter_charts_fragment_and_refresh_time() {
         "{} bytes: an empty page?",
         bytes.len()
     );
-    if let Ok(keep) = std::env::var("MAVTABLES_KEEP_SCREENSHOT") {
+    if let Ok(keep) = std::env::var("MAVTABLES_KEEP_FLEET_SCREENSHOT") {
         std::fs::copy(&png, keep).expect("keep screenshot");
     }
     drop(plain);
