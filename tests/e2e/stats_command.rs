@@ -447,4 +447,50 @@ fn a_fleet_of_a_thousand_links_top_and_filter() {
     let (code, _, err) = stats(&["--url", &url, "--top", "many"]);
     assert_eq!(code, Some(1));
     assert!(err.contains("--top 'many': expected a number"), "{err}");
+    // --help says both.
+    let (code, out, _) = stats(&["--help"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        out.contains("--top N") && out.contains("--filter TEXT"),
+        "{out}"
+    );
+
+    // --watch with both: every picture has the same three rows and says what it hid.
+    let before = server.requests.load(Ordering::SeqCst);
+    let mut child = Command::new(BIN)
+        .args(["stats", "--watch", "--url", &url])
+        .args(["--top", "3", "--filter", "10.0.3."])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let mut out = child.stdout.take().expect("stdout");
+    let pid = child.id() as i32;
+    let mut guard = Guard(Some(child));
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let started = Instant::now();
+    // Two pictures asked for (a picture begun is finished before Ctrl-C ends the loop).
+    while server.requests.load(Ordering::SeqCst) < before + 2 {
+        assert!(
+            started.elapsed() < Duration::from_secs(15),
+            "no 2nd picture"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let status = guard.wait(Duration::from_secs(5)).expect("--watch ends");
+    assert_eq!(status.code(), Some(0));
+    let text = reader.join().expect("stdout");
+    let pictures: Vec<&str> = text.split("mavtables at ").skip(1).collect();
+    assert!(pictures.len() >= 2, "{text}");
+    for p in pictures {
+        assert_eq!(link_rows(p), expect(&third[..3]), "{p}");
+        assert!(p.contains("229 more hidden by --top"), "{p}");
+    }
 }

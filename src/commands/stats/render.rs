@@ -197,9 +197,9 @@ fn links(stats: &Value, view: &View, out: &mut Vec<String>) {
             },
         ]);
     }
-    if rows.is_empty() {
+    if matching == 0 {
         out.push(format!("links: none of {} match the filter", links.len()));
-    } else {
+    } else if !rows.is_empty() {
         out.extend(table.lines(&table.widths(), ""));
     }
     out.extend(details);
