@@ -538,6 +538,18 @@ sequence gaps
             "{text}"
         );
         assert!(!text.contains("sequence gaps"), "{text}");
+        let zero = View {
+            top: Some(0),
+            filter: None,
+        };
+        let text = render(&stats, "u", &zero);
+        assert!(
+            text.ends_with(
+                "\n(links: 0 of 6 shown; 6 more hidden by --top)\n\
+                 (sources: 0 of 1 shown; 1 more hidden by --top)\n"
+            ),
+            "{text}"
+        );
     }
 
     #[test]
