@@ -46,10 +46,17 @@ pub fn rate_in(i: usize) -> f64 {
 /// The statistics of a fleet of `links` links at the `n`th request, with `samples` of
 /// history per link (the router keeps 300).
 pub fn stats(links: usize, n: u64, samples: usize) -> Value {
+    stats_window(links, n, samples, |_| samples)
+}
+
+/// The statistics as a router answers `/stats?history=N&chart=...`: of the `samples`
+/// of history of link `i`, the last `keep(i)`.
+pub fn stats_window(links: usize, n: u64, samples: usize, keep: impl Fn(usize) -> usize) -> Value {
     let list: Vec<Value> = (0..links)
         .map(|i| {
             let fps = rate_in(i);
-            let history: Vec<f64> = (0..samples)
+            let from = samples.saturating_sub(keep(i));
+            let history: Vec<f64> = (from..samples)
                 .map(|s| {
                     if silent(i) && s + 10 >= samples {
                         0.0
@@ -68,7 +75,7 @@ pub fn stats(links: usize, n: u64, samples: usize) -> Value {
                 "rate_in_bps": fps * 320.0, "rate_out_bps": 160.0,
                 "drops": {"filter_rejected": if drops(i) { 5 + n } else { 0 }, "no_route": 0},
                 "queue_bytes": 0, "queue_high_water": 80, "addresses": [source(i)],
-                "history_in_fps": history, "history_out_fps": vec![1.0; samples]
+                "history_in_fps": history, "history_out_fps": vec![1.0; samples - from]
             })
         })
         .collect();

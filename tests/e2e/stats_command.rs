@@ -189,7 +189,7 @@ fn errors_are_one_line_and_exit_1() {
     let cases: [(Answer, &str); 4] = [
         (
             Answer::Http(404, "text/plain", b"not here".to_vec()),
-            "(GET /stats): answered 404 Not OK",
+            "(GET /stats?history=5): answered 404 Not OK",
         ),
         (Answer::Close, "closed the connection without answering"),
         (

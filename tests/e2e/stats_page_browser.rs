@@ -56,18 +56,20 @@ fn stats(n: usize) -> String {
 /// for `/stats` (from 1) finds nobody when `down(n)`.
 fn serve(down: impl Fn(usize) -> bool + Send + 'static) -> HttpFixture {
     let asked = AtomicUsize::new(0);
-    HttpFixture::start(move |path, _| match path {
-        "/" => Answer::Http(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
-        "/stats" => {
-            let n = asked.fetch_add(1, Ordering::SeqCst) + 1;
-            if down(n) {
-                Answer::Close
-            } else {
-                Answer::Http(200, "application/json", stats(n).into_bytes())
+    HttpFixture::start(
+        move |path, _| match path.split('?').next().unwrap_or(path) {
+            "/" => Answer::Http(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
+            "/stats" => {
+                let n = asked.fetch_add(1, Ordering::SeqCst) + 1;
+                if down(n) {
+                    Answer::Close
+                } else {
+                    Answer::Http(200, "application/json", stats(n).into_bytes())
+                }
             }
-        }
-        _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
-    })
+            _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
+        },
+    )
 }
 
 /// The value of attribute `name` in the first tag of `dom` that starts with `tag_start`.

@@ -46,6 +46,11 @@ const DRIVER: &str = r##"<script>
     out.filtered = rows();
     out.filtered_hidden = note().getAttribute("data-hidden");
     document.querySelector("#links tbody tr:nth-child(2)").click();
+    // Its whole history comes with the next answer, asked for at once.
+    const clicked = performance.now();
+    const points = () => document.querySelector("#charts section[data-chart] svg.chart")?.getAttribute("data-points");
+    while (points() !== "300" && performance.now() - clicked < 5000) await sleep(10);
+    out.chart_ms = performance.now() - clicked;
     const chart = document.querySelector("#charts section[data-chart]");
     out.chart = chart && [chart.getAttribute("data-chart"),
       chart.querySelector("svg.chart").getAttribute("data-points"),
@@ -68,18 +73,37 @@ const DRIVER: &str = r##"<script>
 /// A fixture serving the page (with `driver` added) and the fleet's statistics; each
 /// `/report?JSON` is sent to the returned receiver.
 fn serve(driver: &'static str) -> (HttpFixture, mpsc::Receiver<Value>) {
-    // Three pictures of the fleet, served in turn: counters move, the order does not.
-    let bodies: Vec<Vec<u8>> = (1..=3)
-        .map(|n| fleet::stats(LINKS, n, 300).to_string().into_bytes())
-        .collect();
+    let pictures: Vec<Picture> = (1..=3).map(Picture::new).collect();
     let page = PAGE.replace("</body>", &format!("{driver}</body>"));
     let (tx, rx) = mpsc::channel();
     let tx = Arc::new(Mutex::new(tx));
     let server = HttpFixture::start(move |path, n| {
         if path == "/" || path.starts_with("/#") {
             Answer::Http(200, "text/html; charset=utf-8", page.clone().into_bytes())
-        } else if path == "/stats" {
-            Answer::Http(200, "application/json", bodies[n % 3].clone())
+        } else if path == "/stats" || path.starts_with("/stats?") {
+            // As the router answers: the history the query asks for.
+            let query = path.split_once('?').map_or("", |(_, q)| q);
+            let mut last = None;
+            let mut charted = Vec::new();
+            for pair in query.split('&') {
+                match pair.split_once('=') {
+                    Some(("history", v)) => last = v.parse::<usize>().ok(),
+                    Some(("chart", v)) => charted.push(percent_decode(v)),
+                    _ => {}
+                }
+            }
+            // The counters move with each request, the order does not.
+            let picture = &pictures[n % 3];
+            let links: Vec<&str> = (0..LINKS)
+                .map(|i| match last {
+                    Some(5) if !charted.contains(&fleet::name(i)) => picture.short[i].as_str(),
+                    _ => picture.full[i].as_str(),
+                })
+                .collect();
+            let body = picture
+                .frame
+                .replace("\"@LINKS@\"", &format!("[{}]", links.join(",")));
+            Answer::Http(200, "application/json", body.into_bytes())
         } else if let Some(q) = path.strip_prefix("/report?") {
             let text = percent_decode(q);
             let v = serde_json::from_str(&text).unwrap_or(Value::String(text));
@@ -90,6 +114,35 @@ fn serve(driver: &'static str) -> (HttpFixture, mpsc::Receiver<Value>) {
         }
     });
     (server, rx)
+}
+
+/// The fleet's statistics at one request, prepared so that the fixture's answers cost
+/// next to nothing (its time is part of the refresh the page measures): each link's
+/// JSON with 5 samples of history and with all 300, and the rest around them.
+struct Picture {
+    short: Vec<String>,
+    full: Vec<String>,
+    frame: String,
+}
+
+impl Picture {
+    fn new(n: u64) -> Picture {
+        let texts = |v: &Value| -> Vec<String> {
+            v["links"]
+                .as_array()
+                .map(|l| l.iter().map(Value::to_string).collect())
+                .unwrap_or_default()
+        };
+        let mut short = fleet::stats_window(LINKS, n, 300, |_| 5);
+        let full = texts(&fleet::stats(LINKS, n, 300));
+        let short_links = texts(&short);
+        short["links"] = Value::String("@LINKS@".into());
+        Picture {
+            short: short_links,
+            full,
+            frame: short.to_string(),
+        }
+    }
 }
 
 /// `%XX` escapes decoded (as `encodeURIComponent` writes them).
@@ -316,6 +369,30 @@ fn a_real_router_with_200_udp_links() {
         "{dom}"
     );
 
+    // What the page asks for: 5 samples of history per link, all of the charted one's.
+    let charted = peers[7].local_addr().expect("addr").to_string();
+    let history = |l: &Value| l["history_in_fps"].as_array().map_or(0, Vec::len);
+    common::eventually("more than 5 samples", Duration::from_secs(15), || {
+        let len = stats_router::stats(port)["links"]
+            .as_array()
+            .map_or(0, |l| history(&l[0]));
+        len > 6
+    });
+    let body = get(
+        port,
+        &format!("/stats?history=5&chart={}", charted.replace(':', "%3A")),
+    );
+    let answer: Value = serde_json::from_str(&body).expect("JSON");
+    let links = answer["links"].as_array().expect("links");
+    for l in links {
+        let n = history(l);
+        if l["name"] == charted.as_str() {
+            assert!(n > 5, "{l}");
+        } else {
+            assert!(n <= 5, "{l}");
+        }
+    }
+
     // The command: 10 rows, 190 hidden; a filter by one peer's address finds its link.
     let run = |args: &[&str]| {
         let out = std::process::Command::new(BIN)
@@ -348,4 +425,20 @@ fn a_real_router_with_200_udp_links() {
     assert!(line.ends_with(" 42.0") || line.contains(" 42."), "{line}");
     assert!(out.contains("199 not matching --filter"), "{out}");
     router.stop();
+}
+
+/// The body of `GET target` from the router's statistics endpoint on `port`.
+fn get(port: u16, target: &str) -> String {
+    use std::io::{Read, Write};
+    let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    c.set_read_timeout(Some(Duration::from_secs(5)))
+        .expect("timeout");
+    write!(c, "GET {target} HTTP/1.1\r\nHost: x\r\n\r\n").expect("send");
+    let mut answer = String::new();
+    let _ = c.read_to_string(&mut answer);
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    answer
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_string())
+        .unwrap_or_default()
 }
