@@ -189,6 +189,8 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
     );
     // The intruder's HEARTBEATs were kept from the ground station: a link with drops.
     assert!(row(&dom, &g).contains("data-state=\"drops\""), "{dom}");
+    assert!(row(&dom, &g).contains("title=\"filter rejected "), "{dom}");
+    assert!(card(&dom, &g).contains("drops: filter rejected "), "{dom}");
     // The rules with their counters: the intruder's HEARTBEATs were rejected by rule 0,
     // the ATTITUDE stream accepted by rule 1.
     let counter = |rule: usize, class: &str| -> u64 {
