@@ -9,18 +9,26 @@ use std::sync::atomic::AtomicBool;
 
 use super::arg_reader::{Arg, ArgReader, OptionSpec};
 use super::find_config;
+use crate::commands::stats::render::View;
 use crate::commands::stats::{self, Endpoint};
 use crate::config::{self, render_errors};
 
 const USAGE: &str = "\
-usage: mavtables stats [--config FILE | --url http://HOST:PORT] [--watch]
+usage: mavtables stats [--config FILE | --url http://HOST:PORT] [--top N] [--filter TEXT] [--watch]
   Asks a running router for its statistics and prints every chain and rule with the
-  packets, bytes and decisions it counted (like iptables -L -v), then a table of links.
+  packets, bytes and decisions it counted (like iptables -L -v), then a table of links:
+  the troubled first (state drops, gaps or silent), then the busiest.
   --config FILE     the router's configuration: its stats block says where to ask
                     (without --config or --url, the file is searched for as the
                     router does: $MAVTABLES_CONFIG_PATH, ./.mavtablesrc, ...)
   --url URL         ask http://HOST:PORT directly
+  --top N           at most N links (and N lossy sources), saying how many are hidden
+  --filter TEXT     only links whose name, interface or addresses contain TEXT
+                    (and sources that do), ignoring case
   --watch           redraw every second, like top, until Ctrl-C
+  A link's state: drops (a frame of it was dropped since the router started), gaps (a
+  source learned on it lost frames), silent (nothing received over the last 5 samples
+  of its history, 5 s by default), else ok.
 ";
 
 /// The options of `stats`, as read by the shared reader.
@@ -29,6 +37,8 @@ const OPTIONS: &[OptionSpec] = &[
     OptionSpec::value("config"),
     OptionSpec::value("url"),
     OptionSpec::flag("watch"),
+    OptionSpec::value("top"),
+    OptionSpec::value("filter"),
 ];
 
 /// Runs `mavtables stats ARGS`; the exit status, or the error line to print.
@@ -40,6 +50,7 @@ pub(super) fn run_stats(
     let mut config = None;
     let mut url = None;
     let mut watch = false;
+    let mut view = View::default();
     let mut reader = ArgReader::new(args.iter().cloned(), &[OPTIONS]);
     while let Some(arg) = reader.next_arg()? {
         match arg {
@@ -53,6 +64,16 @@ pub(super) fn run_stats(
             } => config = value,
             Arg::Option { name: "url", value } => url = value,
             Arg::Option { name: "watch", .. } => watch = true,
+            Arg::Option { name: "top", value } => {
+                let text = value.unwrap_or_default();
+                view.top = Some(text.parse().map_err(|_| {
+                    format!("--top '{text}': expected a number of rows, e.g. --top 20")
+                })?);
+            }
+            Arg::Option {
+                name: "filter",
+                value,
+            } => view.filter = value.filter(|f| !f.is_empty()),
             Arg::Option { .. } => {}
             Arg::Positional(extra) => {
                 let _ = err.write_all(USAGE.as_bytes());
@@ -66,7 +87,7 @@ pub(super) fn run_stats(
         (config, None) => from_config(config.as_deref(), err)?,
     };
     if !watch {
-        stats::show(&endpoint, out)?;
+        stats::show(&endpoint, &view, out)?;
         return Ok(0);
     }
     // Ctrl-C (and SIGTERM) end the loop, which puts the terminal back before exiting 0.
@@ -76,7 +97,7 @@ pub(super) fn run_stats(
             .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
     }
     let terminal = std::io::stdout().is_terminal();
-    match stats::watch(&endpoint, out, terminal, &stop) {
+    match stats::watch(&endpoint, &view, out, terminal, &stop) {
         Ok(()) => Ok(0),
         // The reader went away (`| head`): stop quietly, as command-line tools do.
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(0),

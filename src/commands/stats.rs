@@ -85,7 +85,20 @@ impl Endpoint {
 
 /// The router's statistics, or one line saying why there are none.
 pub fn fetch(endpoint: &Endpoint) -> Result<Value, String> {
-    let body = http::get(&endpoint.authority, &endpoint.path, TIMEOUT)?;
+    fetch_query(endpoint, "")
+}
+
+/// The statistics with only the rate history the tables need (the `silent` state looks
+/// at the last [`render::SILENT_SAMPLES`]): a fraction of the whole at many links. A
+/// router from before the `history` parameter ignores it and sends everything.
+fn fetch_for_tables(endpoint: &Endpoint) -> Result<Value, String> {
+    fetch_query(endpoint, &format!("?history={}", render::SILENT_SAMPLES))
+}
+
+/// The statistics at the endpoint's path followed by `query` (empty, or from `?`).
+fn fetch_query(endpoint: &Endpoint, query: &str) -> Result<Value, String> {
+    let target = format!("{}{query}", endpoint.path);
+    let body = http::get(&endpoint.authority, &target, TIMEOUT)?;
     let stats: Value = serde_json::from_slice(&body)
         .map_err(|e| format!("{} is not statistics JSON: {e}", endpoint.url()))?;
     match stats.get("version").and_then(Value::as_u64) {
@@ -99,9 +112,13 @@ pub fn fetch(endpoint: &Endpoint) -> Result<Value, String> {
 }
 
 /// Prints the statistics once.
-pub(crate) fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), String> {
-    let stats = fetch(endpoint)?;
-    out.write_all(render::render(&stats, &endpoint.url()).as_bytes())
+pub(crate) fn show(
+    endpoint: &Endpoint,
+    view: &render::View,
+    out: &mut dyn Write,
+) -> Result<(), String> {
+    let stats = fetch_for_tables(endpoint)?;
+    out.write_all(render::render(&stats, &endpoint.url(), view).as_bytes())
         .and_then(|()| out.flush())
         .map_err(|e| format!("writing output: {e}"))
 }
@@ -112,6 +129,7 @@ pub(crate) fn show(endpoint: &Endpoint, out: &mut dyn Write) -> Result<(), Strin
 /// A router that does not answer is shown as such and asked again a second later.
 pub(crate) fn watch(
     endpoint: &Endpoint,
+    view: &render::View,
     out: &mut dyn Write,
     terminal: bool,
     stop: &AtomicBool,
@@ -120,7 +138,7 @@ pub(crate) fn watch(
         // Alternate screen, cursor hidden.
         out.write_all(b"\x1b[?1049h\x1b[?25l")?;
     }
-    let result = watch_loop(endpoint, out, terminal, stop);
+    let result = watch_loop(endpoint, view, out, terminal, stop);
     if terminal {
         // Back to the normal screen, cursor shown: the shell is as it was.
         let _ = out.write_all(b"\x1b[?25h\x1b[?1049l");
@@ -131,6 +149,7 @@ pub(crate) fn watch(
 
 fn watch_loop(
     endpoint: &Endpoint,
+    view: &render::View,
     out: &mut dyn Write,
     terminal: bool,
     stop: &AtomicBool,
@@ -138,8 +157,8 @@ fn watch_loop(
     let mut first = true;
     while !stop.load(Ordering::Relaxed) {
         let started = Instant::now();
-        let text = match fetch(endpoint) {
-            Ok(stats) => render::render(&stats, &endpoint.url()),
+        let text = match fetch_for_tables(endpoint) {
+            Ok(stats) => render::render(&stats, &endpoint.url(), view),
             Err(e) => format!("router not answering: {e}\n"),
         };
         if terminal {

@@ -20,6 +20,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::config::StatsEndpoint;
+use crate::stats::history_query::HistoryQuery;
 use crate::stats::{self, StatsSnapshot};
 
 /// Longest a client may take to send its request head, and again to take the answer.
@@ -197,8 +198,9 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
         Some("HEAD") => true,
         _ => return answer(405, "text/plain; charset=utf-8", b"only GET and HEAD\n"),
     };
-    let path = origin_path(request.path.unwrap_or("/"));
-    let path = path.split(['?', '#']).next().unwrap_or(path);
+    let target = origin_path(request.path.unwrap_or("/"));
+    let target = target.split('#').next().unwrap_or(target);
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
     let mut out = match path {
         "/metrics" => answer(
             200,
@@ -208,7 +210,7 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
         "/stats" => answer(
             200,
             "application/json",
-            stats::json::render(snapshot).as_bytes(),
+            stats::json::render(&HistoryQuery::parse(query).apply(snapshot)).as_bytes(),
         ),
         "/" | "/index.html" => answer(
             200,

@@ -3,6 +3,7 @@
 
 pub mod browser;
 pub mod disk;
+pub mod fleet;
 pub mod http_fixture;
 pub mod mavproxy;
 pub mod needs;

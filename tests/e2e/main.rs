@@ -31,6 +31,7 @@ mod signing_peers;
 mod stats_command;
 mod stats_e2e;
 mod stats_page_browser;
+mod stats_page_fleet;
 mod tcp_faults_e2e;
 mod transports_e2e;
 mod websocket_browser;

@@ -119,6 +119,17 @@ fn counts_of_a_scripted_scenario_exactly() {
     send(&vehicle, &attitude(1, 10));
     assert_eq!(udp_frames(&gcs, 1, 5 * SECOND).len(), 1, "ATTITUDE 10");
     stats_router::wait_quiet(port);
+    // Then until every link has been silent for 5 samples, so its state is certain.
+    eventually("every link silent", Duration::from_secs(15), || {
+        stats_router::stats(port)["links"]
+            .as_array()
+            .is_some_and(|links| {
+                links.iter().all(|l| {
+                    let h = l["history_in_fps"].as_array().cloned().unwrap_or_default();
+                    h.len() >= 5 && h[h.len() - 5..].iter().all(|v| v.as_f64() == Some(0.0))
+                })
+            })
+    });
 
     // Rule 0 decided the intruder's 3 HEARTBEATs for 2 destinations each (6 × 21 bytes);
     // rule 1 the vehicle's HEARTBEAT and 11 ATTITUDE for the ground station and the last
@@ -146,10 +157,10 @@ chain default
 
 default_action reject: 0 packets, 0 bytes
 
-link             interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
-{g}  udp 127.0.0.1:{ground}          1          12   0.0    0.0         0          0      4      0          72  255.1
-{v}  udp 127.0.0.1:{air}         12           0   0.0    0.0         0          0      3      0           0  1.1
-{x}  udp 127.0.0.1:{air}          3           1   0.0    0.0         0          0      0      0          72  2.1
+link             state   interface            frames in  frames out  in/s  out/s  in bit/s  out bit/s  drops  queue  high-water  addresses
+{g}  drops   udp 127.0.0.1:{ground}          1          12   0.0    0.0         0          0      4      0          72  255.1
+{v}  drops   udp 127.0.0.1:{air}         12           0   0.0    0.0         0          0      3      0           0  1.1
+{x}  silent  udp 127.0.0.1:{air}          3           1   0.0    0.0         0          0      0      0          72  2.1
   drops of {g}: filter rejected 3, no route 1
   drops of {v}: filter rejected 3
 "
@@ -178,7 +189,7 @@ fn errors_are_one_line_and_exit_1() {
     let cases: [(Answer, &str); 4] = [
         (
             Answer::Http(404, "text/plain", b"not here".to_vec()),
-            "(GET /stats): answered 404 Not OK",
+            "(GET /stats?history=5): answered 404 Not OK",
         ),
         (Answer::Close, "closed the connection without answering"),
         (
@@ -363,4 +374,123 @@ fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
     assert!(text.starts_with("\x1b[?1049h\x1b[?25l\x1b[H"), "{text:?}");
     assert!(text.matches("\x1b[H").count() >= 2, "{text:?}");
     assert!(text.ends_with("\x1b[?25h\x1b[?1049l"), "{text:?}");
+}
+
+/// Rows of the links table in `out`: (name, state).
+fn link_rows(out: &str) -> Vec<(String, String)> {
+    out.lines()
+        .skip_while(|l| !l.starts_with("link "))
+        .skip(1)
+        .take_while(|l| !l.is_empty() && !l.starts_with(' ') && !l.starts_with('('))
+        .map(|l| {
+            let mut w = l.split_whitespace();
+            (
+                w.next().unwrap_or_default().to_string(),
+                w.next().unwrap_or_default().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_fleet_of_a_thousand_links_top_and_filter() {
+    use common::fleet;
+    let body = fleet::stats(1000, 1, 10).to_string();
+    let server = HttpFixture::start(move |_, _| json(body.clone()));
+    let url = server.url();
+    let expect = |order: &[usize]| -> Vec<(String, String)> {
+        order
+            .iter()
+            .map(|&i| (fleet::name(i), fleet::state(i).to_string()))
+            .collect()
+    };
+
+    // Every link, troubled first (each with its state), then the busiest.
+    let (code, out, err) = stats(&["--url", &url]);
+    assert_eq!(code, Some(0), "{err}");
+    let all = fleet::order(1000, |_| true);
+    assert_eq!(link_rows(&out), expect(&all));
+    let troubled = (0..1000).filter(|&i| fleet::troubled(i)).count();
+    assert!((20..100).contains(&troubled), "{troubled}");
+    assert!(!out.contains("hidden"), "nothing is hidden without --top");
+
+    // --top 5: the five first of that order and how many are hidden.
+    let (code, out, err) = stats(&["--url", &url, "--top", "5"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(link_rows(&out), expect(&all[..5]), "{out}");
+    assert!(link_rows(&out).iter().all(|(_, s)| s != "ok"), "{out}");
+    assert!(
+        out.contains("(links: 5 of 1000 shown; 995 more hidden by --top)\n"),
+        "{out}"
+    );
+
+    // --filter: the links whose name contains the text (10.0.3.x: links 768 to 999).
+    let (code, out, err) = stats(&["--url", &url, "--filter", "10.0.3.", "--top", "3"]);
+    assert_eq!(code, Some(0), "{err}");
+    let third = fleet::order(1000, |i| fleet::name(i).contains("10.0.3."));
+    assert_eq!(third.len(), 232);
+    assert_eq!(link_rows(&out), expect(&third[..3]), "{out}");
+    assert!(
+        out.contains(
+            "(links: 3 of 1000 shown; 229 more hidden by --top, 768 not matching --filter)\n"
+        ),
+        "{out}"
+    );
+    // A source's address finds its link.
+    let (code, out, err) = stats(&["--url", &url, "--filter", &fleet::source(5)]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        link_rows(&out).contains(&(fleet::name(5), "gaps".to_string())),
+        "{out}"
+    );
+    // A bad --top is one line.
+    let (code, _, err) = stats(&["--url", &url, "--top", "many"]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("--top 'many': expected a number"), "{err}");
+    // --help says both.
+    let (code, out, _) = stats(&["--help"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        out.contains("--top N") && out.contains("--filter TEXT"),
+        "{out}"
+    );
+
+    // --watch with both: every picture has the same three rows and says what it hid.
+    let before = server.requests.load(Ordering::SeqCst);
+    let mut child = Command::new(BIN)
+        .args(["stats", "--watch", "--url", &url])
+        .args(["--top", "3", "--filter", "10.0.3."])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let mut out = child.stdout.take().expect("stdout");
+    let pid = child.id() as i32;
+    let mut guard = Guard(Some(child));
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let started = Instant::now();
+    // Two pictures asked for (a picture begun is finished before Ctrl-C ends the loop).
+    while server.requests.load(Ordering::SeqCst) < before + 2 {
+        assert!(
+            started.elapsed() < Duration::from_secs(15),
+            "no 2nd picture"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let status = guard.wait(Duration::from_secs(5)).expect("--watch ends");
+    assert_eq!(status.code(), Some(0));
+    let text = reader.join().expect("stdout");
+    let pictures: Vec<&str> = text.split("mavtables at ").skip(1).collect();
+    assert!(pictures.len() >= 2, "{text}");
+    for p in pictures {
+        assert_eq!(link_rows(p), expect(&third[..3]), "{p}");
+        assert!(p.contains("229 more hidden by --top"), "{p}");
+    }
 }

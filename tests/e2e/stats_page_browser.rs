@@ -56,18 +56,20 @@ fn stats(n: usize) -> String {
 /// for `/stats` (from 1) finds nobody when `down(n)`.
 fn serve(down: impl Fn(usize) -> bool + Send + 'static) -> HttpFixture {
     let asked = AtomicUsize::new(0);
-    HttpFixture::start(move |path, _| match path {
-        "/" => Answer::Http(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
-        "/stats" => {
-            let n = asked.fetch_add(1, Ordering::SeqCst) + 1;
-            if down(n) {
-                Answer::Close
-            } else {
-                Answer::Http(200, "application/json", stats(n).into_bytes())
+    HttpFixture::start(
+        move |path, _| match path.split('?').next().unwrap_or(path) {
+            "/" => Answer::Http(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
+            "/stats" => {
+                let n = asked.fetch_add(1, Ordering::SeqCst) + 1;
+                if down(n) {
+                    Answer::Close
+                } else {
+                    Answer::Http(200, "application/json", stats(n).into_bytes())
+                }
             }
-        }
-        _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
-    })
+            _ => Answer::Http(404, "text/plain", b"not found".to_vec()),
+        },
+    )
 }
 
 /// The value of attribute `name` in the first tag of `dom` that starts with `tag_start`.
@@ -86,16 +88,24 @@ fn text_after<'a>(dom: &'a str, marker: &str) -> Option<&'a str> {
     Some(&dom[open_end..open_end + dom[open_end..].find('<')?])
 }
 
-/// Card of the link `name` in `dom`: its section, up to the next one.
-fn card<'a>(dom: &'a str, name: &str) -> &'a str {
-    let start = format!("<section class=\"link\" data-link=\"{name}\"");
+/// Row of the link `name` in the links table of `dom`.
+fn row<'a>(dom: &'a str, name: &str) -> &'a str {
+    let start = format!("<tr data-link=\"{name}\"");
     let at = dom
         .find(&start)
-        .unwrap_or_else(|| panic!("no card for {name}: {dom}"));
+        .unwrap_or_else(|| panic!("no row for {name}: {dom}"));
     let rest = &dom[at..];
-    &rest[..rest["<section".len()..]
-        .find("</section>")
-        .map_or(rest.len(), |i| i + "<section".len())]
+    &rest[..rest.find("</tr>").unwrap_or(rest.len())]
+}
+
+/// Chart card of the selected link `name` in `dom`: its section.
+fn card<'a>(dom: &'a str, name: &str) -> &'a str {
+    let start = format!("<section class=\"chart-card\" data-chart=\"{name}\"");
+    let at = dom
+        .find(&start)
+        .unwrap_or_else(|| panic!("no chart for {name}: {dom}"));
+    let rest = &dom[at..];
+    &rest[..rest.find("</section>").unwrap_or(rest.len())]
 }
 
 #[test]
@@ -147,14 +157,16 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
         })
     });
 
-    let url = format!("http://127.0.0.1:{port}/");
+    // The three links selected in the address's fragment, so that each is charted.
+    let url = format!("http://127.0.0.1:{port}/#sel={g}&sel={v}&sel={x}");
     let dom = browser::dom(&scratch, &url, 4000);
     assert_eq!(
         attribute(&dom, "<span id=\"state\"", "class"),
         Some("live"),
         "{dom}"
     );
-    // A card per link, named as the router names it, each with a chart of its history.
+    // A row per link, named as the router names it; a chart of its history for each
+    // selected one.
     for link in [&g, &v, &x] {
         let c = card(&dom, link);
         let points: usize = attribute(c, "<svg class=\"chart\"", "data-points")
@@ -169,9 +181,16 @@ fn shows_links_rules_and_charts_while_traffic_flows() {
             .and_then(|t| t.parse().ok())
             .unwrap_or_else(|| panic!("no {class} in {c}"))
     };
-    assert!(rate(card(&dom, &v), "rate-in-fps") > 0.0, "{dom}");
-    assert!(rate(card(&dom, &g), "rate-out-fps") > 0.0, "{dom}");
-    assert!(card(&dom, &v).contains("addresses 1.1"), "{dom}");
+    assert!(rate(row(&dom, &v), "rate-in-fps") > 0.0, "{dom}");
+    assert!(rate(row(&dom, &g), "rate-out-fps") > 0.0, "{dom}");
+    assert!(
+        row(&dom, &v).contains("<td class=\"addr\">1.1</td>"),
+        "{dom}"
+    );
+    // The intruder's HEARTBEATs were kept from the ground station: a link with drops.
+    assert!(row(&dom, &g).contains("data-state=\"drops\""), "{dom}");
+    assert!(row(&dom, &g).contains("title=\"filter rejected "), "{dom}");
+    assert!(card(&dom, &g).contains("drops: filter rejected "), "{dom}");
     // The rules with their counters: the intruder's HEARTBEATs were rejected by rule 0,
     // the ATTITUDE stream accepted by rule 1.
     let counter = |rule: usize, class: &str| -> u64 {
