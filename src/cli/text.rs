@@ -24,7 +24,7 @@ pub fn help(argv0: &str) -> String {
          subcommands ('mavtables SUBCOMMAND --help' shows a subcommand's options):\n\
          \x20 inspect FILE...       list, decode, summarise or check the frames of captures\n\
          \x20 replay FILE --to ...  send a capture's frames to a UDP or serial link\n\
-         \x20 stats [--watch]       a running router's rule and link counters (its stats block)\n\
+         \x20 stats [OPTIONS]       a running router's rule and link counters (its stats block)\n\
          \n"
     )
 }
