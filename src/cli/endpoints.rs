@@ -7,7 +7,7 @@ use crate::config::claims::Claim;
 use crate::config::net::{self, TextError};
 use crate::config::{
     Config, Host, Interface, Remote, SerialInterface, TcpInterface, UdpInterface,
-    WebSocketInterface,
+    WebSocketInterface, ZenohInterface, ZenohMode,
 };
 use std::net::IpAddr;
 
@@ -19,6 +19,8 @@ pub const KINDS: &[(&str, &str, &str)] = &[
     ("tcp-server", "ADDRESS:PORT", "0.0.0.0:5760"),
     ("tcp-client", "HOST:PORT", "localhost:5760"),
     ("ws-server", "ADDRESS:PORT", "127.0.0.1:8765"),
+    ("zenoh-client", "tcp/HOST:PORT", "tcp/127.0.0.1:7447"),
+    ("zenoh-peer", "tcp/ADDRESS:PORT", "tcp/0.0.0.0:7448"),
 ];
 
 /// One endpoint argument and the interface it stands for.
@@ -70,6 +72,19 @@ pub fn parse(arg: &str) -> Result<Option<Endpoint>, String> {
                 ..WebSocketInterface::default()
             })
         }),
+        "zenoh-client" | "zenoh-peer" => zenoh_endpoint(value).map(|()| {
+            let (mode, connect, listen) = if kind == "zenoh-client" {
+                (ZenohMode::Client, vec![value.to_string()], Vec::new())
+            } else {
+                (ZenohMode::Peer, Vec::new(), vec![value.to_string()])
+            };
+            Interface::Zenoh(ZenohInterface {
+                mode,
+                connect,
+                listen,
+                ..ZenohInterface::default()
+            })
+        }),
         _ => client(value).map(|remote| {
             Interface::Tcp(TcpInterface {
                 connect: Some(remote),
@@ -101,6 +116,12 @@ pub fn parse(arg: &str) -> Result<Option<Endpoint>, String> {
 pub(crate) fn config(endpoints: &[Endpoint]) -> Result<Config, String> {
     let mut claimed: Vec<(Claim, &str)> = Vec::new();
     for e in endpoints {
+        if !cfg!(feature = "zenoh") && matches!(e.interface, Interface::Zenoh(_)) {
+            return Err(format!(
+                "endpoint '{}': this router was built without Zenoh; build one with the Zenoh interface: cargo build --release --features zenoh",
+                e.text
+            ));
+        }
         let Some(claim) = Claim::of(&e.interface) else {
             continue;
         };
@@ -116,6 +137,11 @@ pub(crate) fn config(endpoints: &[Endpoint]) -> Result<Config, String> {
     Ok(Config::accept_all(
         endpoints.iter().map(|e| e.interface.clone()).collect(),
     ))
+}
+
+/// A Zenoh endpoint, `tcp/HOST:PORT`, read as in a `zenoh` block.
+fn zenoh_endpoint(value: &str) -> Result<(), TextError> {
+    crate::config::zenoh_block::endpoint(value)
 }
 
 /// `DEVICE:BAUD`; the device may itself hold `:` (the baud rate follows the last one).
@@ -202,5 +228,46 @@ mod tests {
         assert!(parse("serial::9600").is_err());
         assert!(parse("serial:/dev/x:0").is_err());
         assert!(parse("serial:/dev/x:+5").is_err());
+    }
+
+    #[test]
+    fn zenoh_endpoints_stand_for_a_client_or_a_peer_block() {
+        let interface = |arg: &str| parse(arg).expect("valid").expect("endpoint").interface;
+        let Interface::Zenoh(z) = interface("zenoh-client:tcp/10.0.0.5:7447") else {
+            panic!("zenoh")
+        };
+        assert_eq!(
+            (z.mode, z.connect, z.listen, z.prefix),
+            (
+                ZenohMode::Client,
+                vec!["tcp/10.0.0.5:7447".to_string()],
+                vec![],
+                "mavtables".into()
+            )
+        );
+        let Interface::Zenoh(z) = interface("zenoh-peer:tcp/[::]:7448") else {
+            panic!("zenoh")
+        };
+        assert_eq!(
+            (z.mode, z.connect, z.listen),
+            (ZenohMode::Peer, vec![], vec!["tcp/[::]:7448".to_string()])
+        );
+        for bad in [
+            "zenoh-client:10.0.0.5:7447",
+            "zenoh-peer:udp/1.2.3.4:7",
+            "zenoh-client:tcp/x",
+        ] {
+            let e = parse(bad).expect_err(bad);
+            assert!(e.contains("e.g. zenoh-"), "{e}");
+        }
+        // A router built without Zenoh says so instead of starting without the link.
+        let e = parse("zenoh-client:tcp/127.0.0.1:7447").expect("valid");
+        let made = config(&[e.expect("endpoint")]);
+        if cfg!(feature = "zenoh") {
+            assert!(made.is_ok());
+        } else {
+            let why = made.expect_err("no zenoh");
+            assert!(why.contains("--features zenoh"), "{why}");
+        }
     }
 }

@@ -210,6 +210,20 @@ pub struct ZenohInterface {
     pub signing: Option<InterfaceSigning>,
 }
 
+impl Default for ZenohInterface {
+    /// `zenoh {}`: a client of no Zenoh router yet, under the default prefix.
+    fn default() -> Self {
+        ZenohInterface {
+            mode: ZenohMode::default(),
+            connect: Vec::new(),
+            listen: Vec::new(),
+            prefix: Self::DEFAULT_PREFIX.to_string(),
+            receive: ZenohReceive::default(),
+            signing: None,
+        }
+    }
+}
+
 impl ZenohInterface {
     /// The prefix when the block names none.
     pub const DEFAULT_PREFIX: &'static str = "mavtables";

@@ -161,8 +161,9 @@ fn key_prefix(text: &str) -> Result<(), TextError> {
     Ok(())
 }
 
-/// A Zenoh endpoint of a transport this router is built with: `tcp/HOST:PORT`.
-fn endpoint(text: &str) -> Result<(), TextError> {
+/// A Zenoh endpoint of a transport this router is built with: `tcp/HOST:PORT` (also
+/// the value of the `zenoh-client:` and `zenoh-peer:` command-line endpoints).
+pub(crate) fn endpoint(text: &str) -> Result<(), TextError> {
     let Some((transport, address)) = text.split_once('/') else {
         return Err(TextError {
             at: 0..text.len(),

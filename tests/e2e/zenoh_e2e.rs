@@ -663,3 +663,56 @@ fn a_reload_replaces_a_changed_zenoh_block_only() {
         stopped.stdout
     );
 }
+
+/// `mavtables udp-server:… zenoh-client:tcp/…` (no file) at a vehicle's site and at a
+/// ground station's, through a real Zenoh router: each hears the other's heartbeat, and a
+/// command for the vehicle reaches it.
+#[test]
+fn command_line_endpoints_join_a_zenoh_network() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let _zenohd = zenoh_router(&endpoint);
+    let start = |udp: u16| {
+        let child = Command::new(common::router::BIN)
+            .arg(format!("udp-server:127.0.0.1:{udp}"))
+            .arg(format!("zenoh-client:{endpoint}"))
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("spawn mavtables");
+        common::router::Guard(Some(child))
+    };
+    let (vehicle_port, gs_port) = (free_udp_port(), free_udp_port());
+    let _vehicle_router = start(vehicle_port);
+    let _gs_router = start(gs_port);
+    let socket = |port: u16| {
+        let s = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        s.connect(("127.0.0.1", port)).expect("connect");
+        s.set_nonblocking(true).expect("nonblocking");
+        s
+    };
+    let (vehicle, gs) = (socket(vehicle_port), socket(gs_port));
+    let received = |s: &UdpSocket, wanted: &dyn Fn(&Frame<'_>) -> bool| {
+        let mut buf = [0u8; 4096];
+        let mut found = false;
+        while let Ok(n) = s.recv(&mut buf) {
+            let mut parser = Parser::new();
+            parser.feed(&buf[..n], |f| found |= wanted(&f));
+        }
+        found
+    };
+    let (mut vehicle_heard, mut gs_heard) = (false, false);
+    until("each side's heartbeat at the other", 30 * SECOND, || {
+        let _ = vehicle.send(&heartbeat(1));
+        let _ = gs.send(&heartbeat(255));
+        vehicle_heard |= received(&vehicle, &is(0, 255));
+        gs_heard |= received(&gs, &is(0, 1));
+        vehicle_heard && gs_heard
+    });
+    let mut got_command = false;
+    until("the command at the vehicle", 10 * SECOND, || {
+        let _ = gs.send(&command_long(1));
+        got_command |= received(&vehicle, &is(COMMAND_LONG, 255));
+        got_command
+    });
+}
