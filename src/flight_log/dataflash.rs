@@ -15,6 +15,11 @@ pub(crate) const WINDOW: u32 = 1024;
 pub(crate) const ASK_AGAIN: Duration = Duration::from_millis(200);
 /// A missing block is given up after this many NACKs.
 pub(crate) const MAX_ASKS: u8 = 10;
+/// Seqnos from here on are not blocks of a log: 2^31 blocks would be 400 GB, and the
+/// status values ArduPilot reserves for start and stop (2147483645, 2147483646) lie
+/// just below 2^31. Such a block is ignored (neither acknowledged nor written), so the
+/// order's arithmetic never comes near `u32::MAX`.
+pub(crate) const MAX_SEQNO: u32 = 0x7FFF_FFF0;
 /// At most this many NACKs are sent for one received block (a long gap is asked for
 /// over the following turns).
 const NACKS_PER_BLOCK: usize = 32;
@@ -91,6 +96,9 @@ impl Dataflash {
         now: Timestamp,
         acts: &mut Acts,
     ) -> Verdict {
+        if seqno >= MAX_SEQNO {
+            return Verdict::Taken;
+        }
         if seqno < self.next {
             if self.next - seqno > WINDOW {
                 return Verdict::NewLog;
@@ -213,7 +221,7 @@ impl Dataflash {
                 && !self.missing.contains_key(&self.next)
             {
                 // Given up: the file goes on without it.
-                self.next += 1;
+                self.next = self.next.saturating_add(1);
             } else {
                 return;
             }
@@ -223,7 +231,7 @@ impl Dataflash {
     fn deliver(&mut self, data: &[u8; DATAFLASH_BLOCK], acts: &mut Acts) {
         acts.bytes.extend_from_slice(data);
         acts.blocks += 1;
-        self.next = self.next.wrapping_add(1);
+        self.next = self.next.saturating_add(1);
     }
 }
 
@@ -233,6 +241,28 @@ mod tests {
 
     fn data(n: u32) -> [u8; DATAFLASH_BLOCK] {
         [n as u8; DATAFLASH_BLOCK]
+    }
+
+    /// Found by the fuzzer: a block numbered near `u32::MAX` made `drain` overflow (in a
+    /// release build it would have wrapped and walked four billion seqnos).
+    #[test]
+    fn seqnos_beyond_any_log_are_ignored() {
+        let mut d = Dataflash::new();
+        let mut acts = Acts::default();
+        let t = Timestamp::ZERO;
+        for s in [u32::MAX, u32::MAX - 1, MAX_SEQNO, 2_147_483_646] {
+            assert_eq!(d.block(s, &data(1), t, &mut acts), Verdict::Taken);
+        }
+        assert!(acts.statuses.is_empty() && acts.bytes.is_empty());
+        // A log still starts at 0 after them.
+        d.block(0, &data(0), t, &mut acts);
+        assert_eq!((acts.blocks, d.next()), (1, 1));
+        // Joined late just below the limit: the order stops short of it.
+        let mut late = Dataflash::new();
+        let mut acts = Acts::default();
+        late.block(MAX_SEQNO - 1, &data(2), t, &mut acts);
+        late.handle_timeout(t, &mut acts);
+        assert_eq!(acts.blocks, 1);
     }
 
     fn at(ms: u64) -> Timestamp {
