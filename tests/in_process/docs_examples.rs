@@ -120,4 +120,23 @@ fn the_zenoh_examples_are_valid_or_refused_with_the_way_out() {
             );
         }
     }
+    // The worked fleet: the vehicle's and the ground station's files load whole.
+    let fleet = section
+        .split("### A fleet, worked through")
+        .nth(1)
+        .expect("a worked fleet");
+    let files: Vec<&str> = (fleet.split("```").skip(1).step_by(2))
+        .filter(|b| b.contains("zenoh {"))
+        .collect();
+    assert_eq!(files.len(), 2);
+    for file in files {
+        let loaded = mavtables::config::load(file);
+        if cfg!(feature = "zenoh") {
+            if let Err(e) = loaded {
+                panic!("{}", mavtables::config::render_errors("doc", file, &e));
+            }
+        } else {
+            assert!(loaded.is_err(), "no zenoh in this build");
+        }
+    }
 }
