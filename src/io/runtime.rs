@@ -578,7 +578,8 @@ impl Runtime {
                     // a driver fed by threads has input.
                     WAKER => {
                         self.flush_opening();
-                        for key in self.woken.clone() {
+                        for i in 0..self.woken.len() {
+                            let key = self.woken[i];
                             self.mark_readable(key);
                         }
                     }
