@@ -95,6 +95,28 @@ pub fn tcp_frames(stream: &mut TcpStream, want: usize, timeout: Duration) -> Vec
     collect(|b| stream.read(b).ok().filter(|n| *n > 0), want, timeout)
 }
 
+/// A free TCP port below the kernel's ephemeral range, for a listener that another
+/// process binds later (a Zenoh router or peer): a port from [`free_tcp_port`] may be
+/// taken meanwhile by any outgoing connection's ephemeral port, one of these never is.
+pub fn free_listen_port() -> u16 {
+    use std::sync::atomic::{AtomicU16, Ordering};
+    // Each test process starts at its own place in 20000..32000 and walks on from there.
+    static NEXT: AtomicU16 = AtomicU16::new(0);
+    let _ = NEXT.compare_exchange(
+        0,
+        20_000 + (std::process::id() % 12_000) as u16,
+        Ordering::Relaxed,
+        Ordering::Relaxed,
+    );
+    loop {
+        let port = NEXT.fetch_add(1, Ordering::Relaxed);
+        let port = 20_000 + port.wrapping_sub(20_000) % 12_000;
+        if TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            return port;
+        }
+    }
+}
+
 pub fn free_tcp_port() -> u16 {
     TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())

@@ -17,7 +17,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use common::mavproxy::{VehicleLink, ground_station_session};
-use common::net::{ACCEPT_ALL, Counters, SECOND, free_tcp_port, heartbeat, numbered};
+use common::net::{ACCEPT_ALL, Counters, SECOND, free_listen_port, heartbeat, numbered};
 use common::process::Proc;
 use common::router::{Router, Scratch, free_udp_port};
 use mavtables::wire::encode::{Header, encode_v2};
@@ -207,7 +207,7 @@ fn exchange_markers(gs: &mut Site, edges: &mut [Site], n: u32) {
 /// pymavlink, under the documented keys.
 #[test]
 fn a_fleet_through_a_zenoh_router() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let mut zenohd = zenoh_router(&endpoint);
     let mut listener = zenoh_listener(&endpoint, &format!("{PREFIX}/**"));
     let block = |receive: &str| {
@@ -350,7 +350,7 @@ fn a_fleet_through_a_zenoh_router() {
 /// command reaches its vehicle.
 #[test]
 fn a_zenoh_router_restart_loses_nothing_after_reconnection() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let zenohd = zenoh_router(&endpoint);
     let block =
         |receive: &str| format!("zenoh {{ connect {endpoint}; prefix {PREFIX}; {receive} }}");
@@ -420,7 +420,7 @@ fn a_zenoh_router_restart_loses_nothing_after_reconnection() {
 /// connects to it; telemetry and a command go both ways.
 #[test]
 fn peers_without_a_zenoh_router() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let mut gs = Site::start(
         "zenoh-peer-gs",
         &format!("zenoh {{ mode peer; listen {endpoint}; prefix {PREFIX}; receive all; }}"),
@@ -464,7 +464,7 @@ fn peers_without_a_zenoh_router() {
 /// requests (for system 1) reach the edge only because it subscribed to system 1.
 #[test]
 fn mavproxy_downloads_parameters_from_a_vehicle_behind_an_edge() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let mut zenohd = zenoh_router(&endpoint);
     let edge_scratch = Scratch::new("zenoh-mavproxy-edge");
     let edge_port = free_udp_port();
@@ -503,7 +503,7 @@ fn mavproxy_downloads_parameters_from_a_vehicle_behind_an_edge() {
 /// router, reaches the vehicle.
 #[test]
 fn signed_zenoh_edges_drop_what_anyone_else_publishes() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let mut zenohd = zenoh_router(&endpoint);
     let keys = Scratch::new("zenoh-signing-keys");
     let kf = crate::signing::key_file(&keys, "fleet.key", "fleet passphrase");
@@ -574,7 +574,7 @@ fn signed_zenoh_edges_drop_what_anyone_else_publishes() {
 /// listens, they open, say so, and route.
 #[test]
 fn clients_started_before_their_zenoh_router_wait_for_it() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let block =
         |receive: &str| format!("zenoh {{ connect {endpoint}; prefix {PREFIX}; {receive} }}");
     let mut gs = Site::start("zenoh-early-gs", &block("receive all;"));
@@ -614,7 +614,7 @@ fn clients_started_before_their_zenoh_router_wait_for_it() {
 /// under the new prefix, where the ground station's router (reloaded too) listens.
 #[test]
 fn a_reload_replaces_a_changed_zenoh_block_only() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let gs_block = |prefix: &str| {
         format!("zenoh {{ mode peer; listen {endpoint}; prefix {prefix}; receive all; }}")
     };
@@ -669,7 +669,7 @@ fn a_reload_replaces_a_changed_zenoh_block_only() {
 /// command for the vehicle reaches it.
 #[test]
 fn command_line_endpoints_join_a_zenoh_network() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
     let _zenohd = zenoh_router(&endpoint);
     let start = |udp: u16| {
         let child = Command::new(common::router::BIN)
