@@ -360,7 +360,10 @@ const RETRY: &str = r#"{ period_init_ms: 200, period_max_ms: 1000, period_increa
 
 /// The session's configuration: the block's mode and endpoints, no multicast scouting
 /// (sessions find each other only through the endpoints written), and an open that
-/// does not wait for the first connection (Zenoh keeps trying in the background).
+/// does not wait for the first connection. A client whose Zenoh router is not there
+/// fails to open, and the driver retries the open; a peer opens at once and Zenoh
+/// retries each `connect` endpoint in the background, forever (with a zero timeout it
+/// would try a peer that is not listening yet once and never again).
 fn session_config(z: &ZenohInterface) -> Result<zenoh::Config, String> {
     let mut c = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
@@ -368,12 +371,16 @@ fn session_config(z: &ZenohInterface) -> Result<zenoh::Config, String> {
         ZenohMode::Client => "\"client\"",
         ZenohMode::Peer => "\"peer\"",
     };
+    let connect_timeout = match z.mode {
+        ZenohMode::Client => "0",
+        ZenohMode::Peer => "-1",
+    };
     let settings = [
         ("mode", mode.to_string()),
         ("connect/endpoints", json(&z.connect)),
         ("listen/endpoints", json(&z.listen)),
         ("scouting/multicast/enabled", "false".into()),
-        ("connect/timeout_ms", "0".into()),
+        ("connect/timeout_ms", connect_timeout.into()),
         ("connect/exit_on_failure", "false".into()),
         // Retried as a TCP client is: after 0.2 s, doubling up to every second.
         ("connect/retry", RETRY.into()),

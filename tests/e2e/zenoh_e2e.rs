@@ -459,6 +459,42 @@ fn peers_without_a_zenoh_router() {
     gs.stop();
 }
 
+/// A peer whose `connect` endpoint does not listen yet keeps trying it: an edge started
+/// (and publishing) before the ground station's peer reaches it once it listens, and
+/// again after that peer is restarted on the same endpoint.
+#[test]
+fn a_peer_keeps_trying_a_peer_that_is_not_listening_yet() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
+    let mut edge = Site::start(
+        "zenoh-late-peer-edge",
+        &format!("zenoh {{ mode peer; connect {endpoint}; prefix {PREFIX}; }}"),
+    );
+    // The edge's session is open and publishing: its first try at the endpoint is over.
+    until("the edge publishing", 10 * SECOND, || {
+        edge.send(&heartbeat(1));
+        let counters = common::net::counters(&mut edge.router);
+        counters.link(LINK).is_some_and(|l| l.frames_out > 0)
+    });
+    let gs_block =
+        format!("zenoh {{ mode peer; listen {endpoint}; prefix {PREFIX}; receive all; }}");
+    for (round, tag) in ["zenoh-late-peer-gs", "zenoh-late-peer-gs-again"]
+        .iter()
+        .enumerate()
+    {
+        let mut gs = Site::start(tag, &gs_block);
+        let base = 1000 * (round as u32 + 1);
+        let mut n = base;
+        until("the vehicle at the ground station", 30 * SECOND, || {
+            gs.send(&heartbeat(255));
+            edge.send(&numbered(1, n));
+            n += 1;
+            gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
+        });
+        gs.stop();
+    }
+    edge.stop();
+}
+
 /// MAVProxy at the ground-station router downloads every parameter of a vehicle behind
 /// an edge router, arms it and sets a parameter, all through a Zenoh router: the
 /// requests (for system 1) reach the edge only because it subscribed to system 1.
