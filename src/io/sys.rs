@@ -152,82 +152,37 @@ impl RecvBatch {
 }
 
 /// Receives up to [`MAX_BATCH`] datagrams without blocking. Returns how many arrived
-/// (`WouldBlock` when none were waiting); fewer than [`MAX_BATCH`] means the socket was
-/// drained.
-///
-/// The first two datagrams are read with `recvfrom`, the rest with one `recvmmsg`: at
-/// the rates vehicles send, a wake-up finds one datagram, and `recvfrom` twice (the
-/// datagram, then `EAGAIN`) costs the kernel ~1.4 µs less than one `recvmmsg` that
-/// returns one (measured on loopback at 10k frames/s); a burst still takes one call
-/// for the rest of its batch.
+/// (`WouldBlock` when none were waiting).
 pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
-    const SINGLES: usize = 2;
     let fd: RawFd = fd.as_raw_fd();
-    batch.count = 0;
-    for i in 0..SINGLES {
-        match recv_one(fd, batch, i) {
-            Ok(()) => batch.count = i + 1,
-            Err(e) if i == 0 => return Err(e),
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(batch.count),
-            // Another error after a datagram: the batch call below reports it (or
-            // reads what follows it).
-            Err(_) => break,
-        }
-    }
-    let from = batch.count;
     let h = &mut *batch.headers;
-    // The kernel wrote the address lengths of the datagrams of earlier calls.
-    for m in &mut h.msgs[from..] {
+    // The kernel wrote the address lengths of the datagrams of the last call.
+    for m in &mut h.msgs[..batch.count] {
         m.msg_hdr.msg_namelen = RAW_ADDR_LEN;
     }
     // SAFETY: every header points at its own entry of `names` and `iovs` (in the same
     // box) and at its own `slot_len` bytes of `data`, all owned by `batch`, which is
-    // borrowed exclusively for the call; `data` has `MAX_BATCH * slot_len` bytes, and
-    // the call is given the headers from `from` on, `MAX_BATCH - from` of them.
+    // borrowed exclusively for the call; `data` has `MAX_BATCH * slot_len` bytes.
     let n = unsafe {
         libc::recvmmsg(
             fd,
-            h.msgs.as_mut_ptr().add(from),
-            (MAX_BATCH - from) as libc::c_uint,
+            h.msgs.as_mut_ptr(),
+            MAX_BATCH as libc::c_uint,
             libc::MSG_DONTWAIT,
             std::ptr::null_mut(),
         )
     };
     if n < 0 {
-        return Ok(from);
+        batch.count = 0;
+        return Err(io::Error::last_os_error());
     }
     let n = n as usize;
-    for i in from..from + n {
+    for i in 0..n {
         batch.lens[i] = (h.msgs[i].msg_len as usize).min(batch.slot_len);
         batch.addrs[i] = from_raw(&h.names[i]);
     }
-    batch.count = from + n;
-    Ok(batch.count)
-}
-
-/// Reads one datagram into slot `i` of `batch` with `recvfrom`.
-fn recv_one(fd: RawFd, batch: &mut RecvBatch, i: usize) -> io::Result<()> {
-    let h = &mut *batch.headers;
-    let mut name_len = RAW_ADDR_LEN;
-    // SAFETY: `iovs[i]` describes slot `i` of `data` (`slot_len` bytes owned by `batch`,
-    // borrowed exclusively), and the kernel writes at most `name_len` bytes of the
-    // sender's address into `names[i]`, a live `RawAddr` of that size.
-    let n = unsafe {
-        libc::recvfrom(
-            fd,
-            h.iovs[i].iov_base,
-            h.iovs[i].iov_len,
-            libc::MSG_DONTWAIT,
-            (&mut h.names[i] as *mut RawAddr).cast(),
-            &mut name_len,
-        )
-    };
-    if n < 0 {
-        return Err(io::Error::last_os_error());
-    }
-    batch.lens[i] = (n as usize).min(batch.slot_len);
-    batch.addrs[i] = from_raw(&h.names[i]);
-    Ok(())
+    batch.count = n;
+    Ok(n)
 }
 
 /// Asks for a socket buffer of `bytes` beyond the system's limit
@@ -406,8 +361,8 @@ pub(super) fn send_batch<'a>(
 }
 
 /// Sends the one datagram of a batch with `sendto`: at the rates vehicles send, most
-/// batches hold one, and `sendto` costs the kernel ~0.7 µs less than a `sendmmsg` of one
-/// (measured on loopback at 10k frames/s). Returns 1 once it is sent.
+/// batches hold one, and `sendto` spares the kernel the copies of the `sendmmsg`
+/// headers and vector (one system call either way). Returns 1 once it is sent.
 fn send_one(fd: RawFd, h: &SendHeaders) -> io::Result<usize> {
     // SAFETY: `iovs[0]` points at the borrowed datagram of `iov_len` bytes and
     // `names[0]` holds its destination's address of `lens[0]` bytes, all alive for the
@@ -703,18 +658,18 @@ mod tests {
         );
     }
 
-    /// A full batch (two datagrams read one by one, the rest in one call) says the
-    /// socket may hold more; the next call takes the rest and says it is drained.
+    /// A full batch says the socket may hold more; the next call takes the rest, in
+    /// order, and says it is drained.
     #[test]
     fn a_full_batch_is_followed_by_the_rest() {
         let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
         let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
         let to = rx.local_addr().expect("addr");
+        let mut batch = RecvBatch::new(16);
         let total = MAX_BATCH + 6;
         for i in 0..total {
             tx.send_to(&(i as u32).to_le_bytes(), to).expect("send");
         }
-        let mut batch = RecvBatch::new(16);
         let mut got = Vec::new();
         let mut counts = Vec::new();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);

@@ -309,7 +309,6 @@ impl Router {
         // What the filter matches: the id, or the one id of all unknown ones.
         let filter_id = frame.info().id;
         let target = frame.target();
-        let summary = PacketSummary::of(frame);
 
         let len = frame.as_bytes().len();
         // The clock for rate caps, read once for every link.
@@ -322,7 +321,7 @@ impl Router {
         let src_ref = (level >= 2).then(|| link_ref(&self.links[si]));
         if let Some(s) = &src_ref {
             out.events.push(Event::Received {
-                packet: summary,
+                packet: PacketSummary::of(frame),
                 source: s.clone(),
             });
         }
@@ -383,7 +382,7 @@ impl Router {
                     let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
                         out.events.push(Event::Accepted {
-                            packet: summary,
+                            packet: PacketSummary::of(frame),
                             source: s.clone(),
                             dest: link_ref(link),
                             priority,
@@ -396,7 +395,7 @@ impl Router {
                     let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
                         out.events.push(Event::Rejected {
-                            packet: summary,
+                            packet: PacketSummary::of(frame),
                             source: s.clone(),
                             dest: link_ref(link),
                         });
