@@ -170,7 +170,9 @@ impl Router {
         Router::spawn(name, command, dir, port, None)
     }
 
-    fn spawn(
+    /// Starts `command` (a router listening on UDP `port`, and on TCP `tcp` if any)
+    /// with its output logged in `dir`.
+    pub fn spawn(
         name: &str,
         command: Command,
         dir: PathBuf,
