@@ -1212,6 +1212,12 @@ fn sigint_flushes_for_at_most_a_second_and_exits_cleanly() {
         tx.send(&frame("ENCAPSULATED_DATA", true, i, 1, 1, i));
     }
     assert_eq!(rx.recv(1, 5 * SECOND).len(), 1, "sending has started");
+    // Every frame read (a stopping router reads no more): only then the signal.
+    let sender = format!("127.0.0.1:{}", tx.port());
+    common::eventually("all 50 frames read", 10 * SECOND, || {
+        let counters = common::net::counters(&mut router);
+        counters.link(&sender).is_some_and(|l| l.frames_in == 50)
+    });
     let stopped = router.stop_with(libc::SIGINT);
     assert!(stopped.status.success(), "exit status {}", stopped.status);
     assert!(
@@ -1221,7 +1227,9 @@ fn sigint_flushes_for_at_most_a_second_and_exits_cleanly() {
     );
     let received = 1 + rx.recv(50, Duration::from_millis(300)).len();
     assert!(received < 50, "the backlog cannot have drained: {received}");
-    let err = stopped.stderr.join("\n");
+    // The report at exit (the ones asked for above came before it).
+    let all = stopped.stderr.join("\n");
+    let err = &all[all.rfind("mavtables counters:").unwrap_or(0)..];
     let line = format!(
         "127.0.0.1:{}: in 1 frames (21 bytes), out {received} frames ({} bytes)",
         rx.port(),
