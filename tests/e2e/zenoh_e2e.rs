@@ -167,6 +167,16 @@ fn until(what: &str, timeout: Duration, mut step: impl FnMut() -> bool) {
     }
 }
 
+/// The `zenoh` block of a ground station's peer listening at `endpoint`, receiving all.
+fn listening_peer(endpoint: &str, prefix: &str) -> String {
+    format!("zenoh {{ mode peer; listen {endpoint}; prefix {prefix}; receive all; }}")
+}
+
+/// The `zenoh` block of an edge's peer connecting to `endpoint`.
+fn connecting_peer(endpoint: &str, prefix: &str) -> String {
+    format!("zenoh {{ mode peer; connect {endpoint}; prefix {prefix}; }}")
+}
+
 fn is(id: u32, sys: u8) -> impl Fn(&Frame<'_>) -> bool {
     move |f| f.message_id() == id && f.system() == sys
 }
@@ -421,14 +431,8 @@ fn a_zenoh_router_restart_loses_nothing_after_reconnection() {
 #[test]
 fn peers_without_a_zenoh_router() {
     let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
-    let mut gs = Site::start(
-        "zenoh-peer-gs",
-        &format!("zenoh {{ mode peer; listen {endpoint}; prefix {PREFIX}; receive all; }}"),
-    );
-    let mut edge = Site::start(
-        "zenoh-peer-edge",
-        &format!("zenoh {{ mode peer; connect {endpoint}; prefix {PREFIX}; }}"),
-    );
+    let mut gs = Site::start("zenoh-peer-gs", &listening_peer(&endpoint, PREFIX));
+    let mut edge = Site::start("zenoh-peer-edge", &connecting_peer(&endpoint, PREFIX));
     until(
         "the vehicle's heartbeat at the ground station",
         30 * SECOND,
@@ -465,18 +469,14 @@ fn peers_without_a_zenoh_router() {
 #[test]
 fn a_peer_keeps_trying_a_peer_that_is_not_listening_yet() {
     let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
-    let mut edge = Site::start(
-        "zenoh-late-peer-edge",
-        &format!("zenoh {{ mode peer; connect {endpoint}; prefix {PREFIX}; }}"),
-    );
+    let mut edge = Site::start("zenoh-late-peer-edge", &connecting_peer(&endpoint, PREFIX));
     // The edge's session is open and publishing: its first try at the endpoint is over.
     until("the edge publishing", 10 * SECOND, || {
         edge.send(&heartbeat(1));
         let counters = common::net::counters(&mut edge.router);
         counters.link(LINK).is_some_and(|l| l.frames_out > 0)
     });
-    let gs_block =
-        format!("zenoh {{ mode peer; listen {endpoint}; prefix {PREFIX}; receive all; }}");
+    let gs_block = listening_peer(&endpoint, PREFIX);
     for (round, tag) in ["zenoh-late-peer-gs", "zenoh-late-peer-gs-again"]
         .iter()
         .enumerate()
@@ -651,11 +651,8 @@ fn clients_started_before_their_zenoh_router_wait_for_it() {
 #[test]
 fn a_reload_replaces_a_changed_zenoh_block_only() {
     let endpoint = format!("tcp/127.0.0.1:{}", free_listen_port());
-    let gs_block = |prefix: &str| {
-        format!("zenoh {{ mode peer; listen {endpoint}; prefix {prefix}; receive all; }}")
-    };
-    let edge_block =
-        |prefix: &str| format!("zenoh {{ mode peer; connect {endpoint}; prefix {prefix}; }}");
+    let gs_block = |prefix: &str| listening_peer(&endpoint, prefix);
+    let edge_block = |prefix: &str| connecting_peer(&endpoint, prefix);
     let mut gs = Site::start("zenoh-reload-gs", &gs_block(PREFIX));
     let mut edge = Site::start("zenoh-reload-edge", &edge_block(PREFIX));
     // Frames numbered from `base` on until one reaches the ground station: nothing sent
