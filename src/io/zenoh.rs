@@ -25,6 +25,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 use mio::Waker;
 use zenoh::Wait;
@@ -92,6 +93,11 @@ pub struct ZenohDriver {
     in_flight: VecDeque<Transmit>,
     /// The systems last asked for (an edge).
     subscribed: Option<SystemSet>,
+    /// The router's [`Router::systems_generation`] and the time when `subscribed` was
+    /// last checked against the systems reached elsewhere.
+    ///
+    /// [`Router::systems_generation`]: crate::routing::Router::systems_generation
+    checked: Option<(u64, Timestamp)>,
     /// The session is being opened: the core hears how it went from `receive` or
     /// `flush` (the session's thread rings the waker when it knows).
     opening: bool,
@@ -120,6 +126,7 @@ impl ZenohDriver {
             worker: None,
             in_flight: VecDeque::new(),
             subscribed: None,
+            checked: None,
             opening: false,
             dropped_out: 0,
             malformed: 0,
@@ -135,13 +142,24 @@ impl ZenohDriver {
         let Some(outbox) = &self.outbox else {
             return;
         };
-        let systems = engine.systems_elsewhere(self.interface, now);
-        if self.subscribed == Some(systems) {
+        // Walking every link's addresses at every wake-up would cost the edge per frame:
+        // look again when a link learned or lost an address, or a second on (addresses
+        // that expire change nothing the router counts).
+        let generation = engine.router().systems_generation();
+        if let Some((seen, at)) = self.checked
+            && seen == generation
+            && now < at + RECHECK
+        {
             return;
         }
-        if outbox.try_send(Command::Subscribe(systems)).is_ok() {
+        let systems = engine.systems_elsewhere(self.interface, now);
+        if self.subscribed != Some(systems) {
+            if outbox.try_send(Command::Subscribe(systems)).is_err() {
+                return; // a full outbox: tried again at the next wake-up
+            }
             self.subscribed = Some(systems);
         }
+        self.checked = Some((generation, now));
     }
 
     /// Tells the core how opening the session went, once the session's thread knows:
@@ -176,6 +194,7 @@ impl ZenohDriver {
         self.outbox = None;
         self.inbox = None;
         self.subscribed = None;
+        self.checked = None;
         self.opening = false;
         if let Some(worker) = self.worker.take() {
             let _ = worker.join();
@@ -353,6 +372,10 @@ fn without_locations(text: &str) -> String {
     out.push_str(rest);
     out.trim_end().to_string()
 }
+
+/// How often an edge looks again at the systems reached elsewhere when nothing was
+/// learned or lost (their addresses may have expired).
+const RECHECK: Duration = Duration::from_secs(1);
 
 /// How Zenoh retries an endpoint it cannot reach or lost (its default: after 1 s,
 /// doubling up to every 4 s).

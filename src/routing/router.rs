@@ -98,6 +98,9 @@ pub struct Router {
     /// however many other links there are. Links stay listed while their address
     /// expires (the decision checks liveness) and leave with the link.
     by_system: Vec<Vec<LinkId>>,
+    /// Counts the changes to which link holds which systems: an address learned (new,
+    /// or back after it expired) or a link gone. See [`Router::systems_generation`].
+    systems_generation: u64,
     /// `dedup`, groups and the router's own address (see `redundancy`).
     redundancy: Redundancy,
 }
@@ -122,11 +125,20 @@ impl Router {
             limiter: RateLimiter::default(),
             redundancy: Redundancy::default(),
             by_system: vec![Vec::new(); 256],
+            systems_generation: 0,
         }
+    }
+
+    /// A number that changes whenever a link learns an address (new, or back after it
+    /// expired) or a link goes: what the systems reached through each link may have
+    /// changed. Addresses that merely expire do not change it.
+    pub fn systems_generation(&self) -> u64 {
+        self.systems_generation
     }
 
     /// Lists link `id` under `system` (see `by_system`).
     fn index_system(&mut self, system: u8, id: LinkId) {
+        self.systems_generation += 1;
         let list = &mut self.by_system[usize::from(system)];
         if let Err(at) = list.binary_search(&id) {
             list.insert(at, id);
@@ -138,6 +150,7 @@ impl Router {
         if removed.is_empty() {
             return;
         }
+        self.systems_generation += 1;
         let mut removed = removed.to_vec();
         removed.sort_unstable();
         for list in &mut self.by_system {

@@ -95,11 +95,15 @@ mod tests {
         let peer = SocketAddr::from(([127, 0, 0, 1], 5000));
         assert_eq!(e.systems_elsewhere(zenoh, t0), SystemSet::default());
 
+        let before = e.router().systems_generation();
         e.handle_datagram(udp, peer, &heartbeat(3), t0);
         e.handle_message(zenoh, &heartbeat(9)[..7], t0); // cut short: dropped
         e.handle_message(zenoh, &heartbeat(9), t0);
         let systems: Vec<u8> = e.systems_elsewhere(zenoh, t0).iter().collect();
         assert_eq!(systems, [3], "system 9 is behind Zenoh itself");
+        // Learning moved the generation an edge watches.
+        let learned = e.router().systems_generation();
+        assert_ne!(learned, before);
 
         // Vehicle 3's heartbeat went out to Zenoh; system 9's went to the UDP peer only.
         let mut out = VecDeque::new();
@@ -110,6 +114,9 @@ mod tests {
         e.poll_transmit(udp, t0, 16, &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(&out[0].packet[..], &heartbeat(9)[..]);
+        // A known address again does not move it.
+        e.handle_datagram(udp, peer, &heartbeat(3), t0);
+        assert_eq!(e.router().systems_generation(), learned);
 
         // Addresses expire like any other link's: after 120 s of silence, nothing is
         // reached elsewhere, and system 9 is forgotten on the Zenoh link too.
