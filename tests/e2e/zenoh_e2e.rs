@@ -167,6 +167,19 @@ fn until(what: &str, timeout: Duration, mut step: impl FnMut() -> bool) {
     }
 }
 
+/// Sends the vehicle's frames numbered from `base` on (and the ground station's
+/// heartbeat) until one of them reaches the ground station: nothing sent before (still
+/// in a socket) counts. Panics after 30 s.
+fn heard(gs: &mut Site, edge: &mut Site, base: u32) {
+    let mut n = base;
+    until("the vehicle at the ground station", 30 * SECOND, || {
+        gs.send(&heartbeat(255));
+        edge.send(&numbered(1, n));
+        n += 1;
+        gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
+    });
+}
+
 /// The `zenoh` block of a ground station's peer listening at `endpoint`, receiving all.
 fn listening_peer(endpoint: &str, prefix: &str) -> String {
     format!("zenoh {{ mode peer; listen {endpoint}; prefix {prefix}; receive all; }}")
@@ -482,14 +495,7 @@ fn a_peer_keeps_trying_a_peer_that_is_not_listening_yet() {
         .enumerate()
     {
         let mut gs = Site::start(tag, &gs_block);
-        let base = 1000 * (round as u32 + 1);
-        let mut n = base;
-        until("the vehicle at the ground station", 30 * SECOND, || {
-            gs.send(&heartbeat(255));
-            edge.send(&numbered(1, n));
-            n += 1;
-            gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
-        });
+        heard(&mut gs, &mut edge, 1000 * (round as u32 + 1));
         gs.stop();
     }
     edge.stop();
@@ -655,17 +661,6 @@ fn a_reload_replaces_a_changed_zenoh_block_only() {
     let edge_block = |prefix: &str| connecting_peer(&endpoint, prefix);
     let mut gs = Site::start("zenoh-reload-gs", &gs_block(PREFIX));
     let mut edge = Site::start("zenoh-reload-edge", &edge_block(PREFIX));
-    // Frames numbered from `base` on until one reaches the ground station: nothing sent
-    // before (still in a socket) counts.
-    let heard = |gs: &mut Site, edge: &mut Site, base: u32| {
-        let mut n = base;
-        until("the vehicle at the ground station", 30 * SECOND, || {
-            gs.send(&heartbeat(255));
-            edge.send(&numbered(1, n));
-            n += 1;
-            gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
-        });
-    };
     heard(&mut gs, &mut edge, 1000);
     let reload = |site: &mut Site, zenoh: &str| {
         let config = std::fs::read_to_string(&site.router.config).expect("config");
