@@ -11,7 +11,7 @@ use super::snapshot::StatsSnapshot;
 
 /// The history a request asked for.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub(crate) struct HistoryQuery {
+pub struct HistoryQuery {
     /// Samples kept per link, the newest; `None`: all.
     last: Option<usize>,
     /// Links (by name) whose whole history is kept.
@@ -23,7 +23,7 @@ const MAX_CHARTED: usize = 256;
 
 impl HistoryQuery {
     /// The query of a request target's query string (after `?`, without `#`).
-    pub(crate) fn parse(query: &str) -> Self {
+    pub fn parse(query: &str) -> Self {
         let mut q = HistoryQuery::default();
         for pair in query.split('&') {
             let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -34,6 +34,16 @@ impl HistoryQuery {
             }
         }
         q
+    }
+
+    /// Samples kept per link, the newest; `None`: all.
+    pub fn last(&self) -> Option<usize> {
+        self.last
+    }
+
+    /// True if the whole history of the link named `name` is asked for.
+    pub fn charts(&self, name: &str) -> bool {
+        self.charted.iter().any(|c| c == name)
     }
 
     /// `snapshot` with the history asked for: borrowed as it is when all is wanted.
@@ -57,7 +67,7 @@ impl HistoryQuery {
 
 /// `%XX` escapes and `+` (a space, in a query) decoded; invalid escapes kept as they
 /// are, invalid UTF-8 replaced.
-fn percent_decode(s: &str) -> String {
+pub fn percent_decode(s: &str) -> String {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;

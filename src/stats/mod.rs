@@ -5,7 +5,8 @@
 //! that serves them is `src/io/stats_server.rs`.
 
 pub(crate) mod history;
-pub(crate) mod history_query;
+#[doc(hidden)]
+pub mod history_query;
 #[doc(hidden)]
 pub mod json;
 pub(crate) mod prometheus;

@@ -135,6 +135,21 @@ pub fn dom(scratch: &Scratch, url: &str, virtual_ms: u32) -> String {
     )
 }
 
+/// Checks that `png` holds a picture of a page with something on it (a PNG of more
+/// than 20 kB), and copies it where the environment variable `keep` names, if set.
+pub fn check_screenshot(png: &Path, keep: &str) {
+    let bytes = std::fs::read(png).expect("screenshot written");
+    assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+    assert!(
+        bytes.len() > 20_000,
+        "{} bytes: an empty page?",
+        bytes.len()
+    );
+    if let Ok(path) = std::env::var(keep) {
+        std::fs::copy(png, path).expect("keep screenshot");
+    }
+}
+
 /// A 1280 × 900 screenshot of `url` after `virtual_ms` of virtual time, saved as `png`.
 pub fn screenshot(scratch: &Scratch, url: &str, virtual_ms: u32, png: &Path) {
     run(

@@ -16,6 +16,27 @@ use common::router::{BIN, Guard, Scratch, free_udp_port};
 use common::stats_router;
 use std::net::UdpSocket;
 
+/// Starts `mavtables stats --watch ARGS` (standard output a pipe, not a terminal):
+/// its pid, its guard, and a thread that returns all it printed once it ends.
+fn watch(args: &[&str]) -> (i32, Guard, std::thread::JoinHandle<String>) {
+    let mut child = Command::new(BIN)
+        .args(["stats", "--watch"])
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let mut out = child.stdout.take().expect("stdout");
+    let pid = child.id() as i32;
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    (pid, Guard(Some(child)), reader)
+}
+
 /// Runs `mavtables stats ARGS` to its end (at most 20 s): status, stdout, stderr.
 fn stats(args: &[&str]) -> (Option<i32>, String, String) {
     let mut child = Command::new(BIN)
@@ -258,21 +279,7 @@ fn watch_redraws_every_second_and_ends_cleanly_on_ctrl_c() {
             json(fixture_stats(100 * n as u64))
         }
     });
-    let mut child = Command::new(BIN)
-        .args(["stats", "--watch", "--url", &server.url()])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let mut out = child.stdout.take().expect("stdout");
-    let pid = child.id() as i32;
-    let mut guard = Guard(Some(child));
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = out.read_to_string(&mut s);
-        s
-    });
+    let (pid, mut guard, reader) = watch(&["--url", &server.url()]);
     let started = Instant::now();
     while served.load(Ordering::SeqCst) < 3 {
         assert!(
@@ -457,22 +464,7 @@ fn a_fleet_of_a_thousand_links_top_and_filter() {
 
     // --watch with both: every picture has the same three rows and says what it hid.
     let before = server.requests.load(Ordering::SeqCst);
-    let mut child = Command::new(BIN)
-        .args(["stats", "--watch", "--url", &url])
-        .args(["--top", "3", "--filter", "10.0.3."])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn");
-    let mut out = child.stdout.take().expect("stdout");
-    let pid = child.id() as i32;
-    let mut guard = Guard(Some(child));
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = out.read_to_string(&mut s);
-        s
-    });
+    let (pid, mut guard, reader) = watch(&["--url", &url, "--top", "3", "--filter", "10.0.3."]);
     let started = Instant::now();
     // Two pictures asked for (a picture begun is finished before Ctrl-C ends the loop).
     while server.requests.load(Ordering::SeqCst) < before + 2 {

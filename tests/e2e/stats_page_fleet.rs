@@ -9,6 +9,7 @@ use common::browser;
 use common::fleet;
 use common::http_fixture::{Answer, HttpFixture};
 use common::router::Scratch;
+use mavtables::stats::history_query::{HistoryQuery, percent_decode};
 use serde_json::Value;
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
@@ -85,21 +86,12 @@ fn serve(driver: &'static str) -> (HttpFixture, mpsc::Receiver<Value>) {
             Answer::Http(200, "text/html; charset=utf-8", page.clone().into_bytes())
         } else if path == "/stats" || path.starts_with("/stats?") {
             // As the router answers: the history the query asks for.
-            let query = path.split_once('?').map_or("", |(_, q)| q);
-            let mut last = None;
-            let mut charted = Vec::new();
-            for pair in query.split('&') {
-                match pair.split_once('=') {
-                    Some(("history", v)) => last = v.parse::<usize>().ok(),
-                    Some(("chart", v)) => charted.push(percent_decode(v)),
-                    _ => {}
-                }
-            }
+            let query = HistoryQuery::parse(path.split_once('?').map_or("", |(_, q)| q));
             // The counters move with each request, the order does not.
             let picture = &pictures[n % 3];
             let links: Vec<&str> = (0..LINKS)
-                .map(|i| match last {
-                    Some(5) if !charted.contains(&fleet::name(i)) => picture.short[i].as_str(),
+                .map(|i| match query.last() {
+                    Some(5) if !query.charts(&fleet::name(i)) => picture.short[i].as_str(),
                     _ => picture.full[i].as_str(),
                 })
                 .collect();
@@ -146,27 +138,6 @@ impl Picture {
             frame: short.to_string(),
         }
     }
-}
-
-/// `%XX` escapes decoded (as `encodeURIComponent` writes them).
-fn percent_decode(s: &str) -> String {
-    let b = s.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        let escaped = (b[i] == b'%')
-            .then(|| s.get(i + 1..i + 3))
-            .flatten()
-            .and_then(|h| u8::from_str_radix(h, 16).ok());
-        if let Some(x) = escaped {
-            out.push(x);
-            i += 3;
-            continue;
-        }
-        out.push(b[i]);
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// The rows of a report step: (name, state, in/s text).
@@ -321,16 +292,7 @@ fn a_thousand_links_table_sort_filter_charts_fragment_and_refresh_time() {
         fleet::name(expected_first(1))
     );
     browser::screenshot(&scratch, &shot, 3000, &png);
-    let bytes = std::fs::read(&png).expect("screenshot written");
-    assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
-    assert!(
-        bytes.len() > 20_000,
-        "{} bytes: an empty page?",
-        bytes.len()
-    );
-    if let Ok(keep) = std::env::var("MAVTABLES_KEEP_FLEET_SCREENSHOT") {
-        std::fs::copy(&png, keep).expect("keep screenshot");
-    }
+    browser::check_screenshot(&png, "MAVTABLES_KEEP_FLEET_SCREENSHOT");
     drop(plain);
     drop(server);
 }

@@ -470,7 +470,10 @@ sequence gaps
             .take_while(|l| !l.starts_with(' ') && !l.is_empty() && !l.starts_with('('))
             .map(|l| {
                 let mut w = l.split_whitespace();
-                (w.next().unwrap().into(), w.next().unwrap().into())
+                (
+                    w.next().expect("a name").into(),
+                    w.next().expect("a state").into(),
+                )
             })
             .collect()
     }
