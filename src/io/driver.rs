@@ -49,6 +49,14 @@ pub trait Driver {
         false
     }
 
+    /// True if [`Driver::receive`] may end with input still waiting and [`Progress::Done`]
+    /// (a datagram socket reads one datagram per wake-up while traffic is light, as
+    /// `recvmsg` costs less than a batch call that then finds nothing more). The loop
+    /// then watches its descriptor level-triggered, so what is left wakes it again.
+    fn level_triggered(&self) -> bool {
+        false
+    }
+
     /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.
     fn close(&mut self) {}
 

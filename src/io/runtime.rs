@@ -30,7 +30,7 @@ use super::notify::Notifier;
 use super::recorder::{self, Recorder};
 use super::state_file::StateFile;
 use super::stats_server::StatsServer;
-use super::sys::TimerFd;
+use super::sys::{self, TimerFd};
 use crate::config::Config;
 use crate::dialect::DIALECT_NAME;
 use crate::recording::{RecordFilter, RecorderStats};
@@ -115,6 +115,9 @@ struct Runtime {
     /// When [`Runtime::expiring`] is looked at next (the core's once-a-second tick
     /// wakes the loop by then).
     next_expiry: Timestamp,
+    /// Shutting down: nothing is read any more, so no descriptor is watched
+    /// level-triggered (see [`Driver::level_triggered`]).
+    stopping: bool,
 }
 
 impl Runtime {
@@ -214,13 +217,22 @@ impl Runtime {
         } else {
             Interest::READABLE
         };
-        let result = match (slot.registered, fd) {
+        let mut result = match (slot.registered, fd) {
             (Some(old), Some(fd)) if old == fd => {
                 registry.reregister(&mut SourceFd(&fd), Token(key), interest)
             }
             (_, Some(fd)) => registry.register(&mut SourceFd(&fd), Token(key), interest),
             (_, None) => Ok(()),
         };
+        // Not while stopping: nothing is read then, and input left waiting would make
+        // every wait return at once.
+        if let (Ok(()), Some(fd)) = (&result, fd)
+            && slot.driver.level_triggered()
+            && !self.stopping
+        {
+            result =
+                sys::watch_level_triggered(self.poll.as_raw_fd(), fd, key, slot.watching_writes);
+        }
         slot.registered = fd;
         if let Err(e) = result {
             log::error(&format_args!("cannot watch a descriptor: {e}"));
@@ -523,6 +535,21 @@ impl Runtime {
         }
     }
 
+    /// Watches every level-triggered descriptor edge-triggered again: at shutdown
+    /// nothing is read, and input left waiting would make every wait return at once.
+    fn stop_reading(&mut self) {
+        self.stopping = true;
+        let keys: Vec<usize> = self
+            .slots
+            .iter()
+            .filter(|(_, s)| s.driver.level_triggered() && s.registered.is_some())
+            .map(|(key, _)| key)
+            .collect();
+        for key in keys {
+            self.watch(key);
+        }
+    }
+
     fn idle(&self) -> bool {
         self.slots
             .iter()
@@ -566,6 +593,7 @@ impl Runtime {
                                 reload = true;
                             } else if stop_by.is_none() {
                                 stop_by = Some(now + SHUTDOWN_FLUSH);
+                                self.stop_reading();
                                 // The stop request goes out with the last frames.
                                 self.engine.stop_flight_log(now);
                                 if let Some(notifier) = &self.notifier {
@@ -607,6 +635,10 @@ impl Runtime {
             }
             if stop_by.is_none() {
                 self.receive_readable(now);
+                // What was just routed goes out before the turn's bookkeeping: work
+                // done before the send delays the frame and, measured, costs the
+                // router about twice its own time in preemptions (BENCHMARKS.md).
+                self.flush_ready(now);
             }
             self.tell_wall_clock(now);
             self.feed_watchdog(now);
@@ -826,6 +858,7 @@ fn start(
         next_watchdog,
         expiring: Vec::new(),
         next_expiry: Timestamp::ZERO,
+        stopping: false,
     };
     for driver in drivers {
         rt.add(driver, false);

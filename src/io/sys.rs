@@ -4,6 +4,8 @@
 //! - `recvmmsg` / `sendmmsg`: receive or send a batch of UDP datagrams (IPv4 or IPv6)
 //!   in one system call, sending runs
 //!   of equal datagrams to one destination as one UDP GSO message (`UDP_SEGMENT`);
+//!   `recvmsg` for a single datagram when traffic is light;
+//! - `epoll_ctl`: a level-triggered watch, which mio does not offer;
 //! - `SO_RCVBUFFORCE` / `SO_SNDBUFFORCE`: socket buffers beyond the system's limit
 //!   when the process is privileged;
 //! - `localtime_r`: the local calendar time for log lines and recording file names;
@@ -141,6 +143,15 @@ impl RecvBatch {
         }
     }
 
+    /// The first datagram of the last call (what [`recv_one`] read): (sender, bytes),
+    /// both `None` when nothing was read.
+    pub(super) fn first(&self) -> (Option<SocketAddr>, Option<&[u8]>) {
+        if self.count == 0 {
+            return (None, None);
+        }
+        (self.addrs[0], Some(&self.data[..self.lens[0]]))
+    }
+
     /// Datagrams received by the last call: (sender, bytes). A sender that is neither
     /// IPv4 nor IPv6 is `None`.
     pub(super) fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
@@ -183,6 +194,54 @@ pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result
     }
     batch.count = n;
     Ok(n)
+}
+
+/// Receives one datagram without blocking into the first slot of `batch` (`recvmsg`):
+/// one system call, where [`recv_batch`] also looks for a second datagram. For a socket
+/// the loop watches level-triggered, whose next wake-up reports what is left.
+pub(super) fn recv_one(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
+    let fd: RawFd = fd.as_raw_fd();
+    let h = &mut *batch.headers;
+    h.msgs[0].msg_hdr.msg_namelen = RAW_ADDR_LEN;
+    // SAFETY: the first header points at `names[0]`, `iovs[0]` and the first `slot_len`
+    // bytes of `data`, all owned by `batch`, which is borrowed exclusively for the call.
+    let n = unsafe { libc::recvmsg(fd, &mut h.msgs[0].msg_hdr, libc::MSG_DONTWAIT) };
+    if n < 0 {
+        batch.count = 0;
+        return Err(io::Error::last_os_error());
+    }
+    batch.lens[0] = (n as usize).min(batch.slot_len);
+    batch.addrs[0] = from_raw(&h.names[0]);
+    batch.count = 1;
+    Ok(1)
+}
+
+/// Turns the watch of `fd` (registered by mio in `epoll` under `token`, edge-triggered)
+/// level-triggered: readable (and writable, with `writable`) is reported at every wait
+/// while it holds, not only when it changes, so a driver may end its turn before the
+/// socket is drained. mio has no level-triggered registration of its own; it reads
+/// back the token and the flags it knows, so the watch stays its to change or remove.
+pub(super) fn watch_level_triggered(
+    epoll: RawFd,
+    fd: RawFd,
+    token: usize,
+    writable: bool,
+) -> io::Result<()> {
+    let mut events = libc::EPOLLIN | libc::EPOLLRDHUP;
+    if writable {
+        events |= libc::EPOLLOUT;
+    }
+    let mut event = libc::epoll_event {
+        events: events as u32,
+        u64: token as u64,
+    };
+    // SAFETY: passes a pointer to a live `epoll_event`; the kernel only reads it.
+    let r = unsafe { libc::epoll_ctl(epoll, libc::EPOLL_CTL_MOD, fd, &mut event) };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
 }
 
 /// Asks for a socket buffer of `bytes` beyond the system's limit

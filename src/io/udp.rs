@@ -11,6 +11,7 @@ use std::os::fd::{AsRawFd, RawFd};
 use socket2::{Domain, Protocol, Socket, Type};
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use mio::Waker;
 
@@ -28,6 +29,9 @@ const SOCKET_BUFFER: usize = 4 * 1024 * 1024;
 const DATAGRAM_MAX: usize = 8192;
 /// Receive batches taken per wake-up before the loop gets a turn to send.
 const BATCHES_PER_TURN: usize = 8;
+/// Datagrams arriving closer together than this (above ~20k a second) are read in
+/// batches; slower traffic one datagram per wake-up.
+const BURST_GAP: Duration = Duration::from_micros(50);
 
 /// Binds a non-blocking socket with large buffers at `local`.
 fn bind(local: SocketAddr, label: &str) -> io::Result<UdpSocket> {
@@ -71,6 +75,15 @@ fn on_wire(to: SocketAddr, v6_socket: bool) -> SocketAddr {
     }
 }
 
+/// True for receive errors that say nothing about the socket: a signal, or an ICMP
+/// "port unreachable" for an earlier datagram.
+fn is_transient(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::Interrupted | io::ErrorKind::ConnectionRefused
+    )
+}
+
 /// A UDP interface: a server bound at start, or a client of one remote.
 pub struct UdpDriver {
     interface: InterfaceId,
@@ -86,6 +99,11 @@ pub struct UdpDriver {
     /// [`sys::send_batch`]): on when the kernel offers it, off for good once a send
     /// with GSO is refused.
     gso: bool,
+    /// Reading in batches (`recvmmsg`) because datagrams come in bursts; otherwise one
+    /// per wake-up (`recvmsg`), the socket being watched level-triggered.
+    batching: bool,
+    /// When the last datagram was read one by one.
+    last_single: Option<Timestamp>,
     /// Wakes the loop when a client's look-up has its answer.
     waker: Arc<Waker>,
     /// A client's look-up of its remote, while under way.
@@ -117,6 +135,8 @@ impl UdpDriver {
             send_scratch: SendBatch::new(),
             in_flight: VecDeque::new(),
             gso: false,
+            batching: false,
+            last_single: None,
             waker,
             lookup: None,
         };
@@ -188,6 +208,10 @@ impl UdpDriver {
 }
 
 impl Driver for UdpDriver {
+    fn level_triggered(&self) -> bool {
+        true
+    }
+
     fn interface(&self) -> InterfaceId {
         self.interface
     }
@@ -225,13 +249,37 @@ impl Driver for UdpDriver {
         let Some(socket) = &self.socket else {
             return Progress::Done;
         };
-        for _ in 0..BATCHES_PER_TURN {
+        if !self.batching {
+            // Light traffic: one datagram; the level-triggered watch reports the rest.
+            match sys::recv_one(socket, &mut self.batch) {
+                Ok(_) => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
+                Err(e) if is_transient(&e) => return Progress::More,
+                Err(e) => {
+                    engine.on_receive_failed(self.interface, &e);
+                    return Progress::Done;
+                }
+            }
+            if let (Some(from), Some(bytes)) = self.batch.first() {
+                engine.handle_datagram(self.interface, from, bytes, now);
+            }
+            if self
+                .last_single
+                .is_some_and(|last| now.saturating_since(last) < BURST_GAP)
+            {
+                self.batching = true;
+            }
+            self.last_single = Some(now);
+            return Progress::Done;
+        }
+        for turn in 0..BATCHES_PER_TURN {
             let n = match sys::recv_batch(socket, &mut self.batch) {
                 Ok(n) => n,
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                // An ICMP "port unreachable" for an earlier datagram: not a receive problem.
-                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    self.batching = false;
+                    return Progress::Done;
+                }
+                Err(e) if is_transient(&e) => continue,
                 Err(e) => {
                     engine.on_receive_failed(self.interface, &e);
                     return Progress::Done;
@@ -242,9 +290,12 @@ impl Driver for UdpDriver {
                     engine.handle_datagram(self.interface, from, bytes, now);
                 }
             }
-            // Fewer than a full batch: the socket is drained. With edge-triggered
-            // readiness a datagram arriving later raises a new event.
+            // Fewer than a full batch: the socket is drained; a datagram arriving later
+            // raises a new event. A lone datagram where a burst was: back to one by one.
             if n < MAX_BATCH {
+                if turn == 0 && n < 2 {
+                    self.batching = false;
+                }
                 return Progress::Done;
             }
         }
