@@ -1,8 +1,9 @@
 //! The driver of one `udp { }` interface: a non-blocking IPv4 or IPv6 socket, watched
 //! level-triggered; one `recvmsg` per wake-up while traffic is light, batched receive
 //! (`recvmmsg`) in bursts, and batched send (`sendmmsg`, with UDP segmentation offload
-//! for runs to one peer). A server binds at start; a client binds and resolves its target when the
-//! core asks it to open. Which peer is which link, and what to send when, is the core's.
+//! for runs to one peer). A server binds at start; a client binds and resolves its
+//! target when the core asks it to open. Which peer is which link, and what to send
+//! when, is the core's.
 
 use std::collections::VecDeque;
 use std::io;
