@@ -154,10 +154,15 @@ impl Runtime {
 
     /// Hands the frames the core kept for recording to the recorder, stamped with the
     /// wall clock.
+    #[inline]
     fn record(&mut self) {
-        if self.recorder.is_none() {
-            return;
+        if self.recorder.is_some() {
+            self.hand_to_recorder();
         }
+    }
+
+    #[inline(never)]
+    fn hand_to_recorder(&mut self) {
         let now = self.now();
         if let Some(recorder) = &mut self.recorder {
             recorder.take_from(&mut self.engine, now, wall_micros());
@@ -165,7 +170,15 @@ impl Runtime {
     }
 
     /// Hands the flight log's ordered bytes to its writer.
+    #[inline]
     fn write_flight_log(&mut self) {
+        if self.flight_log.is_some() {
+            self.hand_to_flight_log();
+        }
+    }
+
+    #[inline(never)]
+    fn hand_to_flight_log(&mut self) {
         if let Some(writer) = &mut self.flight_log {
             writer.take_from(&mut self.engine);
         }
@@ -422,8 +435,18 @@ impl Runtime {
         }
     }
 
-    /// Acts on the core's notices: log lines, warnings, and streams to open.
+    /// Acts on the core's notices: log lines, warnings, and streams to open. Most turns
+    /// have none: that check is all a frame's turn runs of it (the rest stays out of the
+    /// frame's path and its instruction cache lines).
+    #[inline]
     fn handle_notices(&mut self, now: Timestamp) {
+        if self.engine.has_notices() {
+            self.act_on_notices(now);
+        }
+    }
+
+    #[inline(never)]
+    fn act_on_notices(&mut self, now: Timestamp) {
         while let Some(notice) = self.engine.poll_event() {
             match notice {
                 Notice::Log(event) => self.logger.event(&event),

@@ -276,6 +276,12 @@ impl Engine {
         self.interfaces.get(id.0)?.own_link()
     }
 
+    /// True if [`Engine::poll_event`] has something (most turns it has not).
+    #[inline]
+    pub fn has_notices(&self) -> bool {
+        !self.core.notices.is_empty()
+    }
+
     /// The next notice, oldest first.
     #[inline]
     pub fn poll_event(&mut self) -> Option<Notice> {

@@ -10,7 +10,8 @@ use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::time::{Duration, Instant};
 
 use common::net::{
-    ACCEPT_ALL, SECOND, attitude, connect, free_tcp_port, heartbeat, tcp_frames, udp_frames,
+    ACCEPT_ALL, SECOND, attitude, connect, free_tcp_port, heartbeat, number_of, numbered,
+    tcp_frames, udp_frames,
 };
 use common::router::{Router, Scratch, free_udp_port};
 
@@ -39,6 +40,36 @@ fn a_udp_client_reaches_a_ground_station_that_only_listens() {
     gcs.send_to(&heartbeat(255), router_side).expect("send");
     router.wait_for("new component 255.1 on 127.0.0.1:");
     assert_eq!(udp_frames(&vehicle, 1, 5 * SECOND), [heartbeat(255)]);
+    router.stop();
+}
+
+/// A UDP socket is read one datagram per wake-up while traffic is light, and watched
+/// level-triggered so that what is left wakes the loop again: datagrams that all queued
+/// up while the router could not run (stopped with SIGSTOP) are forwarded, every one, in
+/// order, with nothing else arriving to wake it.
+#[test]
+fn datagrams_queued_while_the_router_was_stopped_are_all_forwarded() {
+    let s = Scratch::new("udp-queued");
+    let port = free_udp_port();
+    let config = format!("udp {{ port {port}; address 127.0.0.1; }}\n{ACCEPT_ALL}");
+    let mut router = Router::start(&s, &config, 1);
+    let to = format!("127.0.0.1:{port}");
+    let vehicle = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let gcs = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    gcs.send_to(&heartbeat(255), &to).expect("send");
+    router.wait_for("new component 255.1 on 127.0.0.1:");
+    vehicle.send_to(&numbered(1, 0), &to).expect("send");
+    router.wait_for("new component 1.1 on 127.0.0.1:");
+    assert_eq!(udp_frames(&gcs, 1, 5 * SECOND), [numbered(1, 0)]);
+    router.signal(libc::SIGSTOP);
+    const QUEUED: u32 = 20;
+    for n in 1..=QUEUED {
+        vehicle.send_to(&numbered(1, n), &to).expect("send");
+    }
+    router.signal(libc::SIGCONT);
+    let got = udp_frames(&gcs, QUEUED as usize, 5 * SECOND);
+    let numbers: Vec<u32> = got.iter().map(|f| number_of(f)).collect();
+    assert_eq!(numbers, (1..=QUEUED).collect::<Vec<_>>());
     router.stop();
 }
 
