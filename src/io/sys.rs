@@ -143,15 +143,6 @@ impl RecvBatch {
         }
     }
 
-    /// The first datagram of the last call (what [`recv_one`] read): (sender, bytes),
-    /// both `None` when nothing was read.
-    pub(super) fn first(&self) -> (Option<SocketAddr>, Option<&[u8]>) {
-        if self.count == 0 {
-            return (None, None);
-        }
-        (self.addrs[0], Some(&self.data[..self.lens[0]]))
-    }
-
     /// Datagrams received by the last call: (sender, bytes). A sender that is neither
     /// IPv4 nor IPv6 is `None`.
     pub(super) fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
@@ -198,7 +189,8 @@ pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result
 
 /// Receives one datagram without blocking into the first slot of `batch` (`recvmsg`):
 /// one system call, where [`recv_batch`] also looks for a second datagram. For a socket
-/// the loop watches level-triggered, whose next wake-up reports what is left.
+/// the loop watches level-triggered, whose next wake-up reports what is left. Returns 1
+/// (`WouldBlock` when nothing was waiting); [`RecvBatch::iter`] gives the datagram.
 pub(super) fn recv_one(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<usize> {
     let fd: RawFd = fd.as_raw_fd();
     let h = &mut *batch.headers;

@@ -251,31 +251,15 @@ impl Driver for UdpDriver {
         let Some(socket) = &self.socket else {
             return Progress::Done;
         };
-        if !self.batching {
-            // Light traffic: one datagram; the level-triggered watch reports the rest.
-            match sys::recv_one(socket, &mut self.batch) {
-                Ok(_) => {}
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
-                Err(e) if is_transient(&e) => return Progress::More,
-                Err(e) => {
-                    engine.on_receive_failed(self.interface, &e);
-                    return Progress::Done;
-                }
-            }
-            if let (Some(from), Some(bytes)) = self.batch.first() {
-                engine.handle_datagram(self.interface, from, bytes, now);
-            }
-            if self
-                .last_single
-                .is_some_and(|last| now.saturating_since(last) < BURST_GAP)
-            {
-                self.batching = true;
-            }
-            self.last_single = Some(now);
-            return Progress::Done;
-        }
         for turn in 0..BATCHES_PER_TURN {
-            let n = match sys::recv_batch(socket, &mut self.batch) {
+            // Light traffic: one datagram, the level-triggered watch reports the rest;
+            // bursts: batches.
+            let read = if self.batching {
+                sys::recv_batch(socket, &mut self.batch)
+            } else {
+                sys::recv_one(socket, &mut self.batch)
+            };
+            let n = match read {
                 Ok(n) => n,
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
                     self.batching = false;
@@ -291,6 +275,14 @@ impl Driver for UdpDriver {
                 if let Some(from) = from {
                     engine.handle_datagram(self.interface, from, bytes, now);
                 }
+            }
+            if !self.batching {
+                // Two datagrams close together: a burst begins.
+                self.batching = self
+                    .last_single
+                    .is_some_and(|last| now.saturating_since(last) < BURST_GAP);
+                self.last_single = Some(now);
+                return Progress::Done;
             }
             // Fewer than a full batch: the socket is drained; a datagram arriving later
             // raises a new event. A lone datagram where a burst was: back to one by one.
