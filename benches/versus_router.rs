@@ -81,14 +81,31 @@ fn main() {
         || PathBuf::from(env!("CARGO_BIN_EXE_mavtables")),
         PathBuf::from,
     );
+    let rounds = std::env::var("MAVTABLES_BENCH_ROUNDS")
+        .ok()
+        .and_then(|n| n.parse().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(ROUNDS);
     let mut all = Vec::new();
     let direct = Sink::new()
         .map_err(|e| e.to_string())
         .and_then(|sink| Contestant::with("no router", None, sink));
     all.push(direct);
-    if let Some(before) = std::env::var_os("MAVTABLES_BEFORE").map(PathBuf::from) {
-        all.push(Contestant::new("mavtables before", |sink| {
-            Router::mavtables("before", &before, sink, false)
+    // Builds to compare, separated like PATH; each named by its file name when there
+    // are several.
+    let befores: Vec<PathBuf> = std::env::var_os("MAVTABLES_BEFORE")
+        .map(|v| std::env::split_paths(&v).collect())
+        .unwrap_or_default();
+    for before in &befores {
+        let name = match befores.len() {
+            1 => "mavtables before".to_string(),
+            _ => format!(
+                "mavtables {}",
+                before.file_name().unwrap_or_default().display()
+            ),
+        };
+        all.push(Contestant::new(&name, |sink| {
+            Router::mavtables("before", before, sink, false)
         }));
     }
     all.push(Contestant::new("mavtables", |sink| {
@@ -108,11 +125,11 @@ fn main() {
         }
     }
     println!(
-        "versus mavlink-router: {ROUNDS} rounds per rate and router, alternating; {} CPUs",
+        "versus mavlink-router: {rounds} rounds per rate and router, alternating; {} CPUs",
         std::thread::available_parallelism().map_or(0, |n| n.get())
     );
     for (r, &(rate, duration)) in RATES.iter().enumerate() {
-        for round in 0..ROUNDS {
+        for round in 0..rounds {
             let n = contestants.len();
             for k in 0..n {
                 let i = if round % 2 == 0 { k } else { n - 1 - k };

@@ -10,6 +10,7 @@
 //! sink only.
 #![allow(dead_code)]
 
+use std::cell::Cell;
 use std::io;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, TcpStream, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -257,13 +258,20 @@ pub fn schedstat_cpu(pid: u32) -> Option<Duration> {
 /// The sink: one UDP socket, known to the router by a HEARTBEAT of system 101.
 pub struct Sink {
     socket: UdpSocket,
+    /// Where the router's frames to the sink come from: each trial starts with a
+    /// HEARTBEAT there, as a real peer sends one every second, so that the sink's
+    /// address does not expire in the router (120 s) however long the benchmark runs.
+    router_side: Cell<Option<SocketAddr>>,
 }
 
 impl Sink {
     /// A sink on a free port of 127.0.0.1.
     pub fn new() -> io::Result<Sink> {
         let socket = UdpSocket::bind("127.0.0.1:0")?;
-        Ok(Sink { socket })
+        Ok(Sink {
+            socket,
+            router_side: Cell::new(None),
+        })
     }
 
     /// Its port.
@@ -301,6 +309,7 @@ pub fn handshake(sender: &UdpSocket, to: Option<SocketAddr>, sink: &Sink) -> Res
                 return Ok(());
             }
             let _ = sink.socket.send_to(&heartbeat(SINK_SYSTEM, 1), from);
+            sink.router_side.set(Some(from));
             answered = true;
         }
     }
@@ -350,6 +359,9 @@ pub fn trial(
     duration: Duration,
     router: Option<u32>,
 ) -> Trial {
+    if let Some(router_side) = sink.router_side.get() {
+        let _ = sink.socket.send_to(&heartbeat(SINK_SYSTEM, 1), router_side);
+    }
     let base = Instant::now();
     let stop = Arc::new(AtomicBool::new(false));
     let dest = to.unwrap_or(SocketAddr::from(([127, 0, 0, 1], sink.port())));
