@@ -22,6 +22,7 @@ mod flight_log_rotation;
 mod forwarding_exact;
 mod log_backpressure;
 mod peers_mavproxy;
+mod pgo_wrapper;
 mod rate_caps_e2e;
 mod recording_e2e;
 mod redundant_links;
