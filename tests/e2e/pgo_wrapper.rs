@@ -2,6 +2,7 @@
 //! profile in `pgo/`: run against a stand-in compiler that prints the arguments it got,
 //! it must change exactly the optimised builds of the mavtables crate.
 
+use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -23,12 +24,7 @@ fn fake_rustc(name: &str, llvm: u32) -> PathBuf {
         ),
     )
     .expect("write the stand-in");
-    let status = Command::new("chmod")
-        .arg("+x")
-        .arg(&rustc)
-        .status()
-        .expect("chmod");
-    assert!(status.success());
+    std::fs::set_permissions(&rustc, std::fs::Permissions::from_mode(0o755)).expect("chmod");
     rustc
 }
 
