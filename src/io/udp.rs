@@ -323,8 +323,7 @@ impl Driver for UdpDriver {
             match sys::send_batch(socket, &mut self.send_scratch, batch, self.gso) {
                 Ok(sent) => {
                     let sent_here = sent.min(wanted);
-                    engine.on_sent_batch(self.in_flight.range(..sent_here));
-                    self.in_flight.drain(..sent_here);
+                    engine.on_sent_batch(self.in_flight.drain(..sent_here));
                     if sent < wanted {
                         return Progress::Blocked; // the socket buffer is full
                     }

@@ -13,7 +13,7 @@
 //! ready:     while let Some(ifc) = engine.poll_ready() { flush ifc }   (only those: an
 //!            interface never named has nothing to send; see [`Engine::poll_ready`])
 //! output:    engine.poll_transmit(ifc, now, room, &mut queue)   then send what it gave;
-//!            engine.on_sent_batch(&sent) per batch taken, on_send_failed(ifc, &t, &e) if not
+//!            engine.on_sent_batch(sent) per batch taken, on_send_failed(ifc, &t, &e) if not
 //! time:      arm one timer for engine.poll_timeout() (re-arming only when it moves
 //!            earlier is enough: handle_timeout(now) called early does nothing)
 //! notices:   while let Some(n) = engine.poll_event() { log it, or open a stream it names }

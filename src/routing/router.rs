@@ -23,6 +23,10 @@ use crate::wire::Frame;
 mod redundancy;
 use redundancy::Redundancy;
 
+/// Packets kept for reuse once sent (see [`Router::recycle`]): at most this many, a few
+/// KiB at most, so that a packet of a length seen recently costs no allocation.
+const SPARE_PACKETS: usize = 16;
+
 /// Tunables of a [`Router`]; `Default` gives the original's behaviour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RouterOptions {
@@ -103,6 +107,8 @@ pub struct Router {
     systems_generation: u64,
     /// `dedup`, groups and the router's own address (see `redundancy`).
     redundancy: Redundancy,
+    /// Sent packets no one else holds, kept to carry the next frames of their lengths.
+    spare: Vec<Packet>,
 }
 
 impl Router {
@@ -126,6 +132,7 @@ impl Router {
             redundancy: Redundancy::default(),
             by_system: vec![Vec::new(); 256],
             systems_generation: 0,
+            spare: Vec::new(),
         }
     }
 
@@ -388,9 +395,12 @@ impl Router {
                         continue;
                     }
                     forwarded = true;
-                    let bytes = packet
-                        .get_or_insert_with(|| Arc::from(frame.as_bytes()))
-                        .clone();
+                    if packet.is_none() {
+                        packet = Some(packet_from(&mut self.spare, frame.as_bytes()));
+                    }
+                    let Some(bytes) = packet.clone() else {
+                        continue;
+                    };
                     self.push(i, bytes, priority, out);
                     let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
@@ -421,6 +431,15 @@ impl Router {
         }
         if filter_id == SETUP_SIGNING_ID && !forwarded {
             self.links[si].counters.setup_signing += 1;
+        }
+    }
+
+    /// Takes back a packet that was sent: when nothing else holds it, it carries a later
+    /// frame of the same length instead of a new allocation (at most [`SPARE_PACKETS`]
+    /// are kept; the rest are freed).
+    pub(crate) fn recycle(&mut self, packet: Packet) {
+        if self.spare.len() < SPARE_PACKETS && Arc::strong_count(&packet) == 1 {
+            self.spare.push(packet);
         }
     }
 
@@ -556,9 +575,58 @@ impl Router {
     }
 }
 
+/// A packet holding `bytes`: a spare of the same length when one is free, else a new one.
+fn packet_from(spare: &mut Vec<Packet>, bytes: &[u8]) -> Packet {
+    if let Some(i) = spare.iter().position(|p| p.len() == bytes.len()) {
+        let mut packet = spare.swap_remove(i);
+        if let Some(buffer) = Arc::get_mut(&mut packet) {
+            buffer.copy_from_slice(bytes);
+            return packet;
+        }
+    }
+    Arc::from(bytes)
+}
+
 fn link_ref(link: &Link) -> LinkRef {
     LinkRef {
         id: link.id(),
         name: link.shared_name(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spare_of_the_same_length_carries_the_next_frame() {
+        let mut spare: Vec<Packet> = vec![Arc::from(&[9u8; 3][..]), Arc::from(&[7u8; 5][..])];
+        let reused = spare[1].as_ptr();
+        let packet = packet_from(&mut spare, &[1, 2, 3, 4, 5]);
+        assert_eq!(&packet[..], &[1, 2, 3, 4, 5]);
+        assert_eq!(packet.as_ptr(), reused, "the spare's buffer, not a new one");
+        assert_eq!(spare.len(), 1);
+        // No spare of this length: a new packet, the spare left alone.
+        let other = packet_from(&mut spare, &[6; 4]);
+        assert_eq!(&other[..], &[6; 4]);
+        assert_eq!(&spare[0][..], &[9; 3]);
+    }
+
+    #[test]
+    fn a_packet_still_held_elsewhere_is_never_reused() {
+        let loaded = crate::config::load("chain default { accept; }\n").expect("config");
+        let mut router = Router::new(&loaded.config);
+        let queued: Packet = Arc::from(&[7u8; 5][..]);
+        let held = queued.clone();
+        router.recycle(queued);
+        assert!(router.spare.is_empty(), "another queue still holds it");
+        let mut spare = vec![held.clone()];
+        let packet = packet_from(&mut spare, &[1, 2, 3, 4, 5]);
+        assert_eq!(&held[..], &[7; 5], "the held packet is unchanged");
+        assert_eq!(&packet[..], &[1, 2, 3, 4, 5]);
+        for _ in 0..SPARE_PACKETS * 2 {
+            router.recycle(Arc::from(&[0u8; 8][..]));
+        }
+        assert_eq!(router.spare.len(), SPARE_PACKETS, "the spares are bounded");
     }
 }

@@ -38,8 +38,8 @@ fn flush(e: &mut Engine, id: InterfaceId, now: Timestamp) -> Vec<Transmit> {
         if queue.is_empty() {
             return sent;
         }
-        e.on_sent_batch(queue.iter());
-        sent.extend(queue.drain(..));
+        sent.extend(queue.iter().cloned());
+        e.on_sent_batch(queue.drain(..));
     }
 }
 

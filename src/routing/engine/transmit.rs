@@ -150,9 +150,10 @@ impl Engine {
         }
     }
 
-    /// Notes that every packet of `sent` was sent (one batch the operating system took):
-    /// each run of packets to one link is counted with one look-up of that link.
-    pub fn on_sent_batch<'a>(&mut self, sent: impl IntoIterator<Item = &'a Transmit>) {
+    /// Takes back every packet of `sent`, which was sent (one batch the operating system
+    /// took): each run of packets to one link is counted with one look-up of that link,
+    /// and the packets are kept for reuse where nothing else holds them.
+    pub fn on_sent_batch(&mut self, sent: impl IntoIterator<Item = Transmit>) {
         let mut run: Option<(LinkId, u64, usize)> = None;
         for t in sent {
             match &mut run {
@@ -167,6 +168,7 @@ impl Engine {
                     run = Some((t.link, 1, t.packet.len()));
                 }
             }
+            self.core.router.recycle(t.packet);
         }
         if let Some((link, frames, bytes)) = run {
             self.count_sent(link, frames, bytes);
