@@ -84,8 +84,6 @@ def flight_frames():
     """The frames of the real flight: each .tlog record is 8 bytes of time, then a frame."""
     with open(FLIGHT, "rb") as f:
         data = f.read()
-    parser = mavlink.MAVLink(None)
-    parser.robust_parsing = True
     frames = []
     i = 0
     while i + 8 < len(data):

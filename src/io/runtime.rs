@@ -658,9 +658,8 @@ impl Runtime {
             }
             if stop_by.is_none() {
                 self.receive_readable(now);
-                // What was just routed goes out before the turn's bookkeeping: work
-                // done before the send delays the frame and, measured, costs the
-                // router about twice its own time in preemptions (BENCHMARKS.md).
+                // What was just routed goes out before the turn's bookkeeping, which
+                // would otherwise add to every frame's latency.
                 self.flush_ready(now);
             }
             self.tell_wall_clock(now);

@@ -395,12 +395,9 @@ impl Router {
                         continue;
                     }
                     forwarded = true;
-                    if packet.is_none() {
-                        packet = Some(packet_from(&mut self.spare, frame.as_bytes()));
-                    }
-                    let Some(bytes) = packet.clone() else {
-                        continue;
-                    };
+                    let bytes = packet
+                        .get_or_insert_with(|| packet_from(&mut self.spare, frame.as_bytes()))
+                        .clone();
                     self.push(i, bytes, priority, out);
                     let link = &self.links[i];
                     if let Some(s) = src_ref.as_ref().filter(|_| level >= 3) {
