@@ -13,6 +13,9 @@
 //! order alternating round by round; medians. System calls: `perf stat -e
 //! raw_syscalls:sys_enter,… -p PID` over a separate 3 s window per router and rate,
 //! divided by the frames sent in it (the router's idle wake-ups in the window count).
+//! Under each table, every mavtables build against mavlink-router paired by round: the
+//! median ratio of CPU per frame and of p50, with a 95% interval of that median (at
+//! least 6 rounds give one; 9 or more give a useful one at 1k frames/s).
 
 mod light;
 
@@ -191,5 +194,45 @@ fn main() {
                 }),
             );
         }
+        paired_verdict(&contestants, r);
+    }
+}
+
+/// Each mavtables build against mavlink-router, round by round (the two ran back to
+/// back in every round, so the machine's drift over the run cancels): the median of
+/// the per-round ratios of CPU per frame and of p50 latency, with the 95% interval of
+/// that median, and whether the goal (no higher than mavlink-router) is shown
+/// met, shown missed, or within the noise of this run.
+fn paired_verdict(contestants: &[Contestant], r: usize) {
+    let Some(theirs) = contestants.iter().find(|c| c.name == "mavlink-router") else {
+        return;
+    };
+    println!("\nmavtables ÷ mavlink-router, paired by round (median [95% interval]):\n");
+    for c in contestants
+        .iter()
+        .filter(|c| c.name.starts_with("mavtables"))
+    {
+        let pairs = c.trials[r].iter().zip(&theirs.trials[r]);
+        let cpu = pairs
+            .clone()
+            .filter_map(|(a, b)| Some(a.cpu_per_frame_us()? / b.cpu_per_frame_us()?))
+            .collect();
+        let p50 = pairs
+            .map(|(a, b)| a.latency_us(0.5) / b.latency_us(0.5))
+            .collect();
+        let show = |v| match light::median_interval(v) {
+            Some((m, lo, hi)) => {
+                let verdict = if hi < 1.0 {
+                    "below: goal met"
+                } else if lo > 1.0 {
+                    "above: goal not met"
+                } else {
+                    "within this run's noise"
+                };
+                format!("{m:.2} [{lo:.2}–{hi:.2}], {verdict}")
+            }
+            None => "–".to_string(),
+        };
+        println!("- {}: CPU/frame {}; p50 {}", c.name, show(cpu), show(p50));
     }
 }

@@ -487,6 +487,33 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The median of `v` and a distribution-free interval around it that holds the true
+/// median with at least 95% probability (order statistics: the `k`-th smallest and
+/// `k`-th largest value, for the largest `k` with P(Binomial(n, ½) < k) ≤ 2.5%). With
+/// fewer than 6 values no such interval exists and the bounds are the extremes.
+pub fn median_interval(mut v: Vec<f64>) -> Option<(f64, f64, f64)> {
+    v.retain(|x| !x.is_nan());
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    // P(Binomial(n, ½) <= j), built up term by term.
+    let mut below = 0.0;
+    let mut term = 0.5f64.powi(n as i32);
+    let mut k = 1;
+    for j in 0..n {
+        below += term;
+        if below > 0.025 {
+            break;
+        }
+        k = j + 1;
+        term *= (n - j) as f64 / (j + 1) as f64;
+    }
+    let k = k.min(n.div_ceil(2));
+    Some((median(v.clone()), v[k - 1], v[n - k]))
+}
+
 /// Opens `n` TCP connections to `server`, each sending one HEARTBEAT of its own
 /// address (systems from 2 on, 100 components each), and keeps them open.
 pub fn idle_clients(server: SocketAddr, n: usize) -> io::Result<Vec<TcpStream>> {
