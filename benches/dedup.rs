@@ -12,6 +12,8 @@
 //! Run: `cargo bench --bench dedup`. Variants are interleaved round by round; the
 //! report gives medians per frame received and the ratios.
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::collections::VecDeque;

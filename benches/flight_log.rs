@@ -13,6 +13,8 @@
 //! report gives medians per frame received, the ratios, and the blocks per second one
 //! core could take (ArduPilot streams its log at up to a few hundred blocks a second).
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::collections::VecDeque;

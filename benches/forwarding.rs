@@ -48,9 +48,10 @@
 //! and (another router) a UDP generator; one thread reads them all every 2 ms
 //! ([`Reading::Sweep`]); the figure is the router's CPU per frame delivered.
 
+#![forbid(unsafe_code)]
+
 use std::io::{self, ErrorKind, Read, Write};
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, TcpListener, TcpStream, UdpSocket};
-use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -89,152 +90,98 @@ const LATENCY_RATE: f64 = 10e3;
 /// Fixed rate at which CPU time per frame is measured.
 const CPU_RATE: f64 = 50e3;
 
-/// The only unsafe code of the benchmark: thin wrappers over `libc` calls that `std`
-/// does not offer (batched send/receive, socket buffer size, clock ticks).
+/// Thin wrappers over the system calls that `std` does not offer (batched send/receive,
+/// socket buffer size, signals, clock ticks), made through `nix`'s safe API and, for
+/// batched sends, the router crate's hidden `io::harness`, as the `forbid` attribute at
+/// the top of this file requires.
 mod sys {
-    use std::io;
-    use std::net::SocketAddrV4;
-    use std::os::fd::RawFd;
+    use std::cell::RefCell;
+    use std::io::{self, IoSliceMut};
+    use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
+    use std::os::fd::AsRawFd;
+
+    use mavtables::io::harness::DatagramSender;
+
+    pub use nix::sys::signal::Signal;
+    use nix::sys::signal::kill;
+    use nix::sys::socket::sockopt::{RcvBuf, RcvBufForce};
+    use nix::sys::socket::{MsgFlags, MultiHeaders, SockaddrIn, recvmmsg, setsockopt};
+    use nix::unistd::{Pid, SysconfVar, sysconf};
 
     /// Most datagrams handed to the kernel in one call.
     pub const BATCH: usize = 64;
 
-    fn sockaddr(a: SocketAddrV4) -> libc::sockaddr_in {
-        // SAFETY: sockaddr_in is plain old data; all zeroes is a valid value.
-        let mut s: libc::sockaddr_in = unsafe { std::mem::zeroed() };
-        s.sin_family = libc::AF_INET as libc::sa_family_t;
-        s.sin_port = a.port().to_be();
-        s.sin_addr.s_addr = u32::from(*a.ip()).to_be();
-        s
+    thread_local! {
+        /// The `mmsghdr`s of this thread's batched receives, allocated once.
+        static RECV_HEADERS: RefCell<MultiHeaders<SockaddrIn>> =
+            RefCell::new(MultiHeaders::preallocate(BATCH, None));
+        /// The same for its batched sends.
+        static SENDER: RefCell<DatagramSender> = RefCell::new(DatagramSender::new());
     }
 
-    /// Sends up to [`BATCH`] `(datagram, destination)` pairs with one `sendmmsg(2)`;
-    /// returns how many were sent (always a prefix of `msgs`).
-    pub fn send_batch(fd: RawFd, msgs: &[(&[u8], SocketAddrV4)]) -> io::Result<usize> {
+    /// Sends up to [`BATCH`] `(datagram, destination)` pairs with one `sendmmsg(2)`
+    /// (the router crate's own, which counts what was sent without reading headers the
+    /// kernel did not write); returns how many were sent (always a prefix of `msgs`).
+    pub fn send_batch(sock: &UdpSocket, msgs: &[(&[u8], SocketAddrV4)]) -> io::Result<usize> {
         let n = msgs.len().min(BATCH);
-        let mut addrs = [sockaddr(SocketAddrV4::new(0.into(), 0)); BATCH];
-        let mut iovs = [libc::iovec {
-            iov_base: std::ptr::null_mut(),
-            iov_len: 0,
-        }; BATCH];
-        // SAFETY: mmsghdr is plain old data; all zeroes is a valid (empty) value.
-        let mut hdrs: [libc::mmsghdr; BATCH] = unsafe { std::mem::zeroed() };
-        for (i, (data, to)) in msgs[..n].iter().enumerate() {
-            addrs[i] = sockaddr(*to);
-            iovs[i].iov_base = data.as_ptr() as *mut libc::c_void;
-            iovs[i].iov_len = data.len();
-            hdrs[i].msg_hdr.msg_name = &mut addrs[i] as *mut _ as *mut libc::c_void;
-            hdrs[i].msg_hdr.msg_namelen = size_of::<libc::sockaddr_in>() as libc::socklen_t;
-            hdrs[i].msg_hdr.msg_iov = &mut iovs[i];
-            hdrs[i].msg_hdr.msg_iovlen = 1;
+        let mut batch = [(&[][..], SocketAddr::from(([0u8; 4], 0))); BATCH];
+        for (slot, &(data, to)) in batch.iter_mut().zip(&msgs[..n]) {
+            *slot = (data, SocketAddr::V4(to));
         }
-        // SAFETY: the first n headers point at addresses and iovecs on this stack frame
-        // and at the caller's datagrams, all alive for the call; the kernel only reads
-        // them (and writes msg_len).
-        let r = unsafe { libc::sendmmsg(fd, hdrs.as_mut_ptr(), n as libc::c_uint, 0) };
-        if r < 0 {
-            Err(io::Error::last_os_error())
-        } else {
-            Ok(r as usize)
-        }
+        SENDER.with_borrow_mut(|sender| sender.send(sock, &batch[..n]))
     }
 
     /// Receives up to [`BATCH`] datagrams with one `recvmmsg(2)`, waiting (up to the
-    /// socket's read timeout) for the first only; fills `lens` and `froms` (the senders)
-    /// and returns the count.
+    /// socket's read timeout) for the first only (`MSG_WAITFORONE`); fills `lens` and
+    /// `froms` (the senders) and returns the count.
     pub fn recv_batch(
-        fd: RawFd,
+        sock: &UdpSocket,
         bufs: &mut [[u8; super::DGRAM_MAX]; BATCH],
         lens: &mut [usize; BATCH],
         froms: &mut [SocketAddrV4; BATCH],
     ) -> io::Result<usize> {
-        let mut iovs = [libc::iovec {
-            iov_base: std::ptr::null_mut(),
-            iov_len: 0,
-        }; BATCH];
-        let mut addrs = [sockaddr(SocketAddrV4::new(0.into(), 0)); BATCH];
-        // SAFETY: as in send_batch.
-        let mut hdrs: [libc::mmsghdr; BATCH] = unsafe { std::mem::zeroed() };
-        for (i, buf) in bufs.iter_mut().enumerate() {
-            iovs[i].iov_base = buf.as_mut_ptr() as *mut libc::c_void;
-            iovs[i].iov_len = buf.len();
-            hdrs[i].msg_hdr.msg_iov = &mut iovs[i];
-            hdrs[i].msg_hdr.msg_iovlen = 1;
-            hdrs[i].msg_hdr.msg_name = &mut addrs[i] as *mut _ as *mut libc::c_void;
-            hdrs[i].msg_hdr.msg_namelen = size_of::<libc::sockaddr_in>() as libc::socklen_t;
-        }
-        // SAFETY: every header points at one iovec and one address on this stack frame,
-        // the iovec covering one of the caller's buffers, all alive and exclusively
-        // borrowed for the call.
-        let r = unsafe {
-            libc::recvmmsg(
-                fd,
-                hdrs.as_mut_ptr(),
-                BATCH as libc::c_uint,
-                libc::MSG_WAITFORONE,
-                std::ptr::null_mut(),
-            )
-        };
-        if r < 0 {
-            return Err(io::Error::last_os_error());
-        }
-        let n = r as usize;
-        for ((len, hdr), (from, a)) in lens
-            .iter_mut()
-            .zip(&hdrs[..n])
-            .zip(froms.iter_mut().zip(&addrs))
-        {
-            *len = hdr.msg_len as usize;
-            *from = SocketAddrV4::new(
-                u32::from_be(a.sin_addr.s_addr).into(),
-                u16::from_be(a.sin_port),
-            );
-        }
-        Ok(n)
+        RECV_HEADERS.with_borrow_mut(|recv| {
+            let mut iovs = bufs.each_mut().map(|buf| [IoSliceMut::new(buf)]);
+            let got = recvmmsg(
+                sock.as_raw_fd(),
+                recv,
+                &mut iovs,
+                MsgFlags::MSG_WAITFORONE,
+                None,
+            )?;
+            let mut n = 0;
+            for ((len, from), msg) in lens.iter_mut().zip(froms.iter_mut()).zip(got) {
+                *len = msg.bytes;
+                *from = msg.address.map_or(
+                    SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0),
+                    SocketAddrV4::from,
+                );
+                n += 1;
+            }
+            Ok(n)
+        })
     }
 
     /// Asks for a receive buffer of `bytes` (the kernel doubles it for its bookkeeping):
-    /// beyond `net.core.rmem_max` if we may (root), else capped at it.
-    pub fn set_recv_buffer(fd: RawFd, bytes: usize) -> io::Result<()> {
-        let v = bytes as libc::c_int;
-        let mut r = -1;
-        for opt in [libc::SO_RCVBUFFORCE, libc::SO_RCVBUF] {
-            // SAFETY: passes a pointer to a live c_int and its size.
-            r = unsafe {
-                libc::setsockopt(
-                    fd,
-                    libc::SOL_SOCKET,
-                    opt,
-                    &v as *const _ as *const libc::c_void,
-                    size_of::<libc::c_int>() as libc::socklen_t,
-                )
-            };
-            if r == 0 {
-                break;
-            }
-        }
-        if r < 0 {
-            Err(io::Error::last_os_error())
-        } else {
-            Ok(())
-        }
+    /// beyond `net.core.rmem_max` if we may (root, `SO_RCVBUFFORCE`), else capped at it
+    /// (`SO_RCVBUF`).
+    pub fn set_recv_buffer(sock: &UdpSocket, bytes: usize) -> io::Result<()> {
+        setsockopt(sock, RcvBufForce, &bytes)
+            .or_else(|_| setsockopt(sock, RcvBuf, &bytes))
+            .map_err(io::Error::from)
     }
 
     /// Sends `signal` to process `pid` (SIGSTOP / SIGCONT for the backlog runs).
-    pub fn signal(pid: u32, signal: libc::c_int) -> io::Result<()> {
-        // SAFETY: kill has no memory preconditions.
-        if unsafe { libc::kill(pid as libc::pid_t, signal) } == 0 {
-            Ok(())
-        } else {
-            Err(io::Error::last_os_error())
-        }
+    pub fn signal(pid: u32, signal: Signal) -> io::Result<()> {
+        Ok(kill(Pid::from_raw(pid as i32), signal)?)
     }
 
     /// Clock ticks per second, the unit of `utime`/`stime` in `/proc/<pid>/stat`.
     pub fn clock_ticks() -> u64 {
-        // SAFETY: sysconf has no preconditions.
-        let t = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
-        if t > 0 { t as u64 } else { 100 }
+        match sysconf(SysconfVar::CLK_TCK) {
+            Ok(Some(t)) if t > 0 => t as u64,
+            _ => 100,
+        }
     }
 }
 
@@ -410,9 +357,11 @@ fn send_all(sock: &UdpSocket, msgs: &[(&[u8], SocketAddrV4)], mode: SendMode) ->
         SendMode::Batched => {
             let mut rest = msgs;
             while !rest.is_empty() {
-                match sys::send_batch(sock.as_raw_fd(), rest) {
+                match sys::send_batch(sock, rest) {
                     Ok(n) => rest = &rest[n..],
                     Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                    // The send does not block: wait for room as a blocking send would.
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => std::thread::yield_now(),
                     Err(_) => {
                         errors += 1;
                         rest = &rest[1..];
@@ -622,8 +571,9 @@ fn sink(job: SinkJob<'_>) -> SinkReport {
         }
         // (pieces read, whether the read filled what was offered)
         let got = match job.sock {
-            Sock::Udp(s) => sys::recv_batch(s.as_raw_fd(), &mut bufs, &mut lens, &mut froms)
-                .map(|n| (n, n == sys::BATCH)),
+            Sock::Udp(s) => {
+                sys::recv_batch(s, &mut bufs, &mut lens, &mut froms).map(|n| (n, n == sys::BATCH))
+            }
             Sock::Tcp(_) => job.sock.recv(bufs.as_flattened_mut()).map(|n| {
                 lens[0] = n;
                 (1, n == STREAM_READ)
@@ -881,13 +831,13 @@ const RELAY_PEERS: usize = 16;
 /// CPU any router spends per received frame. Runs until killed.
 fn relay_serve(port: u16, receive_only: bool) -> io::Result<()> {
     let sock = UdpSocket::bind(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port))?;
-    let _ = sys::set_recv_buffer(sock.as_raw_fd(), 4 << 20);
+    let _ = sys::set_recv_buffer(&sock, 4 << 20);
     let mut bufs = Box::new([[0u8; DGRAM_MAX]; sys::BATCH]);
     let mut lens = [0usize; sys::BATCH];
     let mut froms = [SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0); sys::BATCH];
     let mut peers: Vec<SocketAddrV4> = Vec::new();
     loop {
-        let n = match sys::recv_batch(sock.as_raw_fd(), &mut bufs, &mut lens, &mut froms) {
+        let n = match sys::recv_batch(&sock, &mut bufs, &mut lens, &mut froms) {
             Ok(n) => n,
             Err(e) if e.kind() == ErrorKind::Interrupted => continue,
             Err(e) => return Err(e),
@@ -1100,7 +1050,7 @@ impl Setup {
             s.set_read_timeout(Some(Duration::from_millis(20)))
                 .map_err(io)?;
             // Large enough that the sink is never what drops frames; best effort.
-            let _ = sys::set_recv_buffer(s.as_raw_fd(), 4 << 20);
+            let _ = sys::set_recv_buffer(&s, 4 << 20);
             sinks.push(Sock::Udp(s));
         }
         let mut router = None;
@@ -1730,7 +1680,7 @@ fn backlog_cpu(setup: &mut Setup, rounds: usize, per_round: usize) -> Result<(u6
     let mut frames = 0u64;
     let mut dgram = [0u8; DGRAM_MAX];
     for _ in 0..rounds {
-        sys::signal(pid, libc::SIGSTOP).map_err(|e| format!("SIGSTOP: {e}"))?;
+        sys::signal(pid, sys::Signal::SIGSTOP).map_err(|e| format!("SIGSTOP: {e}"))?;
         buf.clear();
         for i in 0..per_round {
             encode_probe(setup.next_seq + i as u32, 0, &mut buf);
@@ -1740,7 +1690,7 @@ fn backlog_cpu(setup: &mut Setup, rounds: usize, per_round: usize) -> Result<(u6
             buf.chunks(buf.len() / per_round).map(|f| (f, to)).collect();
         send_all(&setup.gen_sock, &msgs, SendMode::Batched);
         let before = router.cpu().ok_or("no CPU time")?;
-        sys::signal(pid, libc::SIGCONT).map_err(|e| format!("SIGCONT: {e}"))?;
+        sys::signal(pid, sys::Signal::SIGCONT).map_err(|e| format!("SIGCONT: {e}"))?;
         // Read only once the router is done: a sink blocked in `recv` would be woken for
         // every datagram, at the router's expense (about 1 µs each on this VM).
         thread::sleep(Duration::from_millis(100));

@@ -13,6 +13,8 @@
 //! Without `--bench` (`cargo test --all-targets`) it only checks, in about a second,
 //! that a router with 20 idle clients forwards.
 
+#![forbid(unsafe_code)]
+
 mod light;
 
 use std::net::UdpSocket;

@@ -4,6 +4,8 @@
 //! Run: `cargo bench --bench parser`. Variants are interleaved round by round so that
 //! machine noise hits them alike; the report gives medians and the ratios of medians.
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::hint::black_box;

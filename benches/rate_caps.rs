@@ -18,6 +18,8 @@
 //! `RATE_CAPS_ONLY=without` (or `with`) runs one variant alone, for a cache profiler:
 //! `RATE_CAPS_ONLY=with valgrind --tool=cachegrind target/release/deps/rate_caps-* --bench`.
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::hint::black_box;

@@ -8,6 +8,8 @@
 //! Run: `cargo bench --bench signing`. Variants are interleaved round by round so that
 //! machine noise hits them alike; the report gives medians of per-frame times.
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::collections::VecDeque;

@@ -17,6 +17,8 @@
 //! median ratio of CPU per frame and of p50, with a 95% interval of that median (at
 //! least 6 rounds give one; 9 or more give a useful one at 1k frames/s).
 
+#![forbid(unsafe_code)]
+
 mod light;
 
 use std::net::{SocketAddr, UdpSocket};

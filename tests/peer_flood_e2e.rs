@@ -7,6 +7,8 @@
 //! `#[ignore]`d for a plain `cargo test`, `scripts/test` runs it, and without the
 //! capability it fails saying so.
 
+#![forbid(unsafe_code)]
+
 mod common;
 
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};

@@ -13,6 +13,8 @@
 //! A scratch tag or file name must not contain "udp": `Router::start` finds the UDP ports
 //! by that word.
 
+#![forbid(unsafe_code)]
+
 mod common;
 #[path = "common/signing.rs"]
 mod signing;

@@ -96,20 +96,11 @@ pub fn free_tcp_port() -> io::Result<u16> {
 /// Raises the limit of open descriptors to `n` (the hard limit, if lower); routers
 /// started afterwards inherit it.
 pub fn raise_fd_limit(n: u64) -> io::Result<u64> {
-    let mut limit = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit writes into the live local `limit`.
-    if unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut limit) } != 0 {
-        return Err(io::Error::last_os_error());
-    }
-    limit.rlim_cur = n.min(limit.rlim_max);
-    // SAFETY: setrlimit reads the live local `limit`.
-    if unsafe { libc::setrlimit(libc::RLIMIT_NOFILE, &limit) } != 0 {
-        return Err(io::Error::last_os_error());
-    }
-    Ok(limit.rlim_cur)
+    use nix::sys::resource::{Resource, getrlimit, setrlimit};
+    let (_, hard) = getrlimit(Resource::RLIMIT_NOFILE)?;
+    let soft = n.min(hard);
+    setrlimit(Resource::RLIMIT_NOFILE, soft, hard)?;
+    Ok(soft)
 }
 
 /// A router process under test, killed when dropped.
@@ -453,10 +444,11 @@ pub fn syscalls_during(pid: u32, window: impl FnOnce()) -> Option<Syscalls> {
     // perf attaches to the tracepoints before it counts.
     thread::sleep(Duration::from_millis(500));
     window();
-    // SAFETY: signals our own child, which has not been waited for (the pid is live).
-    unsafe {
-        libc::kill(perf.id() as i32, libc::SIGINT);
-    }
+    // Our own child, not waited for yet: the pid is still perf's.
+    let _ = nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(perf.id() as i32),
+        nix::sys::signal::Signal::SIGINT,
+    );
     let _ = perf.wait();
     let text = std::fs::read_to_string(&out).ok()?;
     let _ = std::fs::remove_file(&out);

@@ -16,11 +16,14 @@
 //! - `writer_thread`: what both of those writers' threads share — the queue, the wake-up,
 //!   the bounded wait at exit, the counters and the current path; `made_files`: their
 //!   steps on the files they create (create afresh, remove listed ones, plan for room);
+//! - `harness` (hidden): batched UDP sends for the benchmarks' load generators;
 //! - `sys`: the only module with `unsafe` code — the system calls that the standard
 //!   library and `mio` do not offer.
 
 mod driver;
 mod flight_log;
+#[doc(hidden)]
+pub mod harness;
 mod log;
 mod made_files;
 pub(crate) mod manifest;

@@ -40,11 +40,8 @@ pub struct Browser {
 impl Drop for Browser {
     fn drop(&mut self) {
         if let Some(mut child) = self.child.take() {
-            let group = child.id() as i32;
-            // SAFETY: kill(2) on the process group we created; no memory is involved.
-            unsafe {
-                libc::kill(-group, libc::SIGKILL);
-            }
+            let group = nix::unistd::Pid::from_raw(child.id() as i32);
+            let _ = nix::sys::signal::killpg(group, nix::sys::signal::Signal::SIGKILL);
             let _ = child.kill();
             let _ = child.wait();
         }

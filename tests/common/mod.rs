@@ -188,13 +188,12 @@ pub fn manifest(section: &str, column: Verdict) -> Vec<(String, bool)> {
 /// ever going away).
 pub fn pty_at(device: &str) -> (serialport::TTYPort, serialport::TTYPort) {
     use serialport::SerialPort;
-    use std::os::fd::AsRawFd;
-    let (master, slave) = serialport::TTYPort::pair().expect("pty pair");
-    for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
-        // SAFETY: fcntl on a file descriptor we own; no pointers involved.
-        let rc = unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
-        assert_eq!(rc, 0, "FD_CLOEXEC");
-    }
+    // `pair` opens both ends without FD_CLOEXEC; `try_clone_native` duplicates a
+    // descriptor with F_DUPFD_CLOEXEC: the duplicates are kept, the originals closed.
+    let (m, s) = serialport::TTYPort::pair().expect("pty pair");
+    let master = m.try_clone_native().expect("FD_CLOEXEC master");
+    let slave = s.try_clone_native().expect("FD_CLOEXEC slave");
+    drop((m, s));
     let _ = std::fs::remove_file(device);
     std::os::unix::fs::symlink(slave.name().expect("pty name"), device).expect("symlink");
     (master, slave)

@@ -66,10 +66,10 @@ impl Proc {
         let Some(mut child) = self.child.take() else {
             return;
         };
-        // SAFETY: kill(2) on a process group we created has no memory-safety preconditions.
-        unsafe {
-            libc::kill(-(child.id() as i32), libc::SIGKILL);
-        }
+        let _ = nix::sys::signal::killpg(
+            nix::unistd::Pid::from_raw(child.id() as i32),
+            nix::sys::signal::Signal::SIGKILL,
+        );
         let _ = child.wait();
     }
 }

@@ -275,9 +275,9 @@ impl Router {
     /// Sends `signal` (e.g. `libc::SIGTERM`).
     pub fn signal(&mut self, signal: i32) {
         let pid = self.guard.pid();
-        // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-        let rc = unsafe { libc::kill(pid, signal) };
-        assert_eq!(rc, 0, "kill({pid}, {signal})");
+        let sig = nix::sys::signal::Signal::try_from(signal).expect("a signal number");
+        let rc = nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), sig);
+        assert_eq!(rc, Ok(()), "kill({pid}, {signal})");
     }
 
     /// Sends `signal` and waits (at most 5 s) for the exit; collects all output.

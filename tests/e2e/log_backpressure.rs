@@ -228,9 +228,12 @@ fn a_stuck_log_reader_does_not_stall_routing() {
     }
 
     // It stops cleanly and promptly; no line is unaccounted for.
-    let pid = router.child().id() as i32;
-    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0, "kill");
+    let pid = nix::unistd::Pid::from_raw(router.child().id() as i32);
+    assert_eq!(
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM),
+        Ok(()),
+        "kill"
+    );
     let status = router
         .wait(Duration::from_secs(5))
         .expect("no exit within 5 s of SIGTERM");

@@ -5,6 +5,8 @@
 //! load-sensitive floods (`signing_attacks`, `peer_flood_e2e`) stay binaries of their
 //! own so that they still run with nothing of this binary beside them.
 
+#![forbid(unsafe_code)]
+
 #[path = "../common/mod.rs"]
 mod common;
 #[path = "../common/signing.rs"]

@@ -524,9 +524,9 @@ fn expect_notification(socket: &UnixDatagram, what: &str, seen: &mut Vec<String>
 }
 
 fn signal(guard: &mut Guard, signal: i32) {
-    let pid = guard.child().id() as i32;
-    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-    assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+    let pid = nix::unistd::Pid::from_raw(guard.child().id() as i32);
+    let signal = nix::sys::signal::Signal::try_from(signal).expect("a signal number");
+    assert_eq!(nix::sys::signal::kill(pid, signal), Ok(()));
 }
 
 /// The test plays systemd: `READY=1` once the interfaces are open, `WATCHDOG=1` again

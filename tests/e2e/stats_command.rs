@@ -37,6 +37,14 @@ fn watch(args: &[&str]) -> (i32, Guard, std::thread::JoinHandle<String>) {
     (pid, Guard(Some(child)), reader)
 }
 
+/// Ctrl-C to our own child `pid`: SIGINT.
+fn ctrl_c(pid: i32) -> nix::Result<()> {
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(pid),
+        nix::sys::signal::Signal::SIGINT,
+    )
+}
+
 /// Runs `mavtables stats ARGS` to its end (at most 20 s): status, stdout, stderr.
 fn stats(args: &[&str]) -> (Option<i32>, String, String) {
     let mut child = Command::new(BIN)
@@ -290,9 +298,7 @@ fn watch_redraws_every_second_and_ends_cleanly_on_ctrl_c() {
     }
     // Three requests take two full periods: one per second, not faster.
     assert!(started.elapsed() >= Duration::from_millis(1900));
-    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-    let rc = unsafe { libc::kill(pid, libc::SIGINT) };
-    assert_eq!(rc, 0);
+    assert_eq!(ctrl_c(pid), Ok(()));
     let status = guard
         .wait(Duration::from_secs(5))
         .expect("--watch did not end within 5 s of Ctrl-C");
@@ -318,26 +324,9 @@ fn watch_redraws_every_second_and_ends_cleanly_on_ctrl_c() {
 #[test]
 fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
     let server = HttpFixture::start(|_, n| json(fixture_stats(100 * n as u64)));
-    let (mut master, mut slave) = (0, 0);
-    // SAFETY: openpty writes two descriptors; the name, termios and size are optional.
-    let r = unsafe {
-        libc::openpty(
-            &mut master,
-            &mut slave,
-            std::ptr::null_mut(),
-            std::ptr::null(),
-            std::ptr::null(),
-        )
-    };
-    assert_eq!(r, 0, "openpty: {}", std::io::Error::last_os_error());
-    // SAFETY: both descriptors were just opened and are owned by nobody else.
-    let (master, slave) = unsafe {
-        use std::os::fd::FromRawFd;
-        (
-            std::fs::File::from_raw_fd(master),
-            std::os::fd::OwnedFd::from_raw_fd(slave),
-        )
-    };
+    // No termios and no window size given, as openpty(3) with null pointers.
+    let pty = nix::pty::openpty(None, None).expect("openpty");
+    let (master, slave) = (std::fs::File::from(pty.master), pty.slave);
     let child = Command::new(BIN)
         .args(["stats", "--watch", "--url", &server.url()])
         .stdin(Stdio::null())
@@ -366,8 +355,7 @@ fn watch_on_a_terminal_redraws_in_place_and_gives_the_terminal_back() {
             screen.extend(bytes);
         }
     }
-    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    assert_eq!(ctrl_c(pid), Ok(()));
     let status = guard
         .wait(Duration::from_secs(5))
         .expect("--watch did not end within 5 s of Ctrl-C");
@@ -474,8 +462,7 @@ fn a_fleet_of_a_thousand_links_top_and_filter() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    // SAFETY: kill(2) on our own child's pid has no memory-safety preconditions.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    assert_eq!(ctrl_c(pid), Ok(()));
     let status = guard.wait(Duration::from_secs(5)).expect("--watch ends");
     assert_eq!(status.code(), Some(0));
     let text = reader.join().expect("stdout");

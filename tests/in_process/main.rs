@@ -2,6 +2,8 @@
 //! format, the dialect, signing and the routing core driven on a simulated clock
 //! (`routing`), each file a module. Some check against pymavlink (`common::python`).
 
+#![forbid(unsafe_code)]
+
 #[path = "../common/mod.rs"]
 mod common;
 #[path = "../routing/mod.rs"]
