@@ -451,9 +451,18 @@ pub(super) struct SendBatch(Box<SendHeaders>);
 impl SendBatch {
     /// Empty headers.
     pub(super) fn new() -> Self {
-        // SAFETY: arrays of plain-old-data C structs, integers and `SocketAddr`s, for
-        // which all-zero bytes are valid values (an IPv4 address 0.0.0.0:0).
-        SendBatch(Box::new(unsafe { MaybeUninit::zeroed().assume_init() }))
+        let mut headers = MaybeUninit::<SendHeaders>::zeroed();
+        let unspecified = SocketAddr::from(([0u8; 4], 0));
+        // SAFETY: every field but `addrs` is an array of plain-old-data C structs or
+        // integers (null pointers included), for which all-zero bytes are valid values.
+        // `addrs` holds Rust enums, whose layout is not specified, so it is written here
+        // through a pointer to the field (no reference to uninitialised memory) before
+        // the whole is taken as initialised.
+        unsafe {
+            let p = headers.as_mut_ptr();
+            std::ptr::addr_of_mut!((*p).addrs).write([unspecified; MAX_BATCH]);
+            SendBatch(Box::new(headers.assume_init()))
+        }
     }
 }
 
