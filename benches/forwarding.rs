@@ -108,8 +108,8 @@ mod sys {
     use nix::sys::socket::{MsgFlags, MultiHeaders, SockaddrIn, recvmmsg, setsockopt};
     use nix::unistd::{Pid, SysconfVar, sysconf};
 
-    /// Most datagrams handed to the kernel in one call.
-    pub const BATCH: usize = 64;
+    /// Most datagrams handed to the kernel in one call: the router's own batch (64).
+    pub const BATCH: usize = mavtables::io::harness::MAX_BATCH;
 
     thread_local! {
         /// The `mmsghdr`s of this thread's batched receives, allocated once.
@@ -123,12 +123,8 @@ mod sys {
     /// (the router crate's own, which counts what was sent without reading headers the
     /// kernel did not write); returns how many were sent (always a prefix of `msgs`).
     pub fn send_batch(sock: &UdpSocket, msgs: &[(&[u8], SocketAddrV4)]) -> io::Result<usize> {
-        let n = msgs.len().min(BATCH);
-        let mut batch = [(&[][..], SocketAddr::from(([0u8; 4], 0))); BATCH];
-        for (slot, &(data, to)) in batch.iter_mut().zip(&msgs[..n]) {
-            *slot = (data, SocketAddr::V4(to));
-        }
-        SENDER.with_borrow_mut(|sender| sender.send(sock, &batch[..n]))
+        let batch = msgs.iter().map(|&(data, to)| (data, SocketAddr::V4(to)));
+        SENDER.with_borrow_mut(|sender| sender.send(sock, batch))
     }
 
     /// Receives up to [`BATCH`] datagrams with one `recvmmsg(2)`, waiting (up to the

@@ -23,17 +23,13 @@ impl DatagramSender {
     /// Sends the first [`MAX_BATCH`] of `datagrams` (bytes, destination) without
     /// blocking: `sendmmsg`, or `sendto` for one. Returns how many were sent, always a
     /// prefix (`WouldBlock` when the socket took none).
-    pub fn send(
+    pub fn send<'a>(
         &mut self,
         socket: &UdpSocket,
-        datagrams: &[(&[u8], SocketAddr)],
+        datagrams: impl IntoIterator<Item = (&'a [u8], SocketAddr)>,
     ) -> io::Result<usize> {
-        sys::send_batch(
-            socket,
-            &mut self.0,
-            datagrams.iter().map(|&(bytes, to)| (to, bytes)),
-            false,
-        )
+        let batch = datagrams.into_iter().map(|(bytes, to)| (to, bytes));
+        sys::send_batch(socket, &mut self.0, batch, false)
     }
 }
 
@@ -55,8 +51,13 @@ mod tests {
         let (to_a, to_b) = (a.local_addr().expect("addr"), b.local_addr().expect("addr"));
         let batch: [(&[u8], SocketAddr); 3] = [(b"one", to_a), (b"two", to_b), (b"three", to_a)];
         let mut sender = DatagramSender::new();
-        assert_eq!(sender.send(&out, &batch).expect("send"), 3);
-        assert_eq!(sender.send(&out, &batch[..1]).expect("send one"), 1);
+        assert_eq!(sender.send(&out, batch).expect("send"), 3);
+        assert_eq!(
+            sender
+                .send(&out, batch.into_iter().take(1))
+                .expect("send one"),
+            1
+        );
         let mut buf = [0u8; 16];
         let mut got = |s: &UdpSocket| {
             let n = s.recv(&mut buf).expect("a datagram within 5 s");
