@@ -67,6 +67,16 @@ pub trait Driver {
     /// takes it now.
     fn flush(&mut self, engine: &mut Engine, now: Timestamp) -> Progress;
 
+    /// Sends the packet the core holds for a direct send on this interface
+    /// ([`Engine::take_direct`]) at once, if nothing else of this driver is waiting to
+    /// be written: `None` if it cannot (the loop then has the core queue it), else how
+    /// the send went, as [`Driver::flush`] says it. Called right after an input that
+    /// left such a packet ([`Engine::direct_interface`]); drivers that do not send one
+    /// packet at a time need not override it.
+    fn send_now(&mut self, _engine: &mut Engine, _now: Timestamp) -> Option<Progress> {
+        None
+    }
+
     /// True if nothing the core handed out is still waiting to be written.
     fn idle(&self) -> bool;
 

@@ -305,6 +305,12 @@ impl Runtime {
             return;
         };
         let progress = slot.driver.receive(&mut self.engine, now);
+        if let Some(id) = self.engine.direct_interface() {
+            self.send_direct(id, now);
+        }
+        let Some(slot) = self.slots.get_mut(key) else {
+            return;
+        };
         let mut accepted = Vec::new();
         while let Some(driver) = slot.driver.take_accepted() {
             accepted.push(driver);
@@ -422,6 +428,30 @@ impl Runtime {
             return;
         };
         let progress = slot.driver.flush(&mut self.engine, now);
+        self.after_send(key, progress);
+    }
+
+    /// Has the driver of interface `id` send the packet the core holds for a direct send
+    /// at once (before anything else of the turn), or the core queue it if the driver
+    /// cannot.
+    fn send_direct(&mut self, id: InterfaceId, now: Timestamp) {
+        let key = self.slot_of.get(id.0).copied().unwrap_or(usize::MAX);
+        let progress = self
+            .slots
+            .get_mut(key)
+            .and_then(|slot| slot.driver.send_now(&mut self.engine, now));
+        match progress {
+            Some(progress) => self.after_send(key, progress),
+            None => self.engine.queue_direct(),
+        }
+    }
+
+    /// Acts on how a send of `key`'s driver went: a lost device is closed, and
+    /// writability is watched exactly while the operating system refuses data.
+    fn after_send(&mut self, key: usize, progress: Progress) {
+        let Some(slot) = self.slots.get_mut(key) else {
+            return;
+        };
         if progress == Progress::Lost {
             self.close(key);
             return;

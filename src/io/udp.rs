@@ -1,7 +1,9 @@
 //! The driver of one `udp { }` interface: a non-blocking IPv4 or IPv6 socket, watched
 //! level-triggered; one `recvmsg` per wake-up while traffic is light, batched receive
 //! (`recvmmsg`) in bursts, and batched send (`sendmmsg`, with UDP segmentation offload
-//! for runs to one peer). A server binds at start; a client binds and resolves its
+//! for runs to one peer). A packet routed from a datagram read on its own that finds
+//! its queue empty is sent at once with `sendto`, before the rest of the loop's turn
+//! (`Driver::send_now`). A server binds at start; a client binds and resolves its
 //! target when the core asks it to open. Which peer is which link, and what to send
 //! when, is the core's.
 
@@ -271,18 +273,25 @@ impl Driver for UdpDriver {
                     return Progress::Done;
                 }
             };
-            for (from, bytes) in self.batch.iter() {
-                if let Some(from) = from {
-                    engine.handle_datagram(self.interface, from, bytes, now);
-                }
-            }
             if !self.batching {
+                // One datagram, and the loop turns right after it: what it routes may
+                // be sent at once (`Engine::handle_datagram_direct`).
+                for (from, bytes) in self.batch.iter() {
+                    if let Some(from) = from {
+                        engine.handle_datagram_direct(self.interface, from, bytes, now);
+                    }
+                }
                 // Two datagrams close together: a burst begins.
                 self.batching = self
                     .last_single
                     .is_some_and(|last| now.saturating_since(last) < BURST_GAP);
                 self.last_single = Some(now);
                 return Progress::Done;
+            }
+            for (from, bytes) in self.batch.iter() {
+                if let Some(from) = from {
+                    engine.handle_datagram(self.interface, from, bytes, now);
+                }
             }
             // Fewer than a full batch: the socket is drained; a datagram arriving later
             // raises a new event. A lone datagram where a burst was: back to one by one.
@@ -354,6 +363,23 @@ impl Driver for UdpDriver {
                 }
             }
         }
+    }
+
+    fn send_now(&mut self, engine: &mut Engine, now: Timestamp) -> Option<Progress> {
+        if !self.in_flight.is_empty() || self.lookup.is_some() {
+            return None;
+        }
+        let socket = self.socket.as_ref()?;
+        let t = engine.take_direct(self.interface)?;
+        let to = on_wire(t.to.unwrap_or(SocketAddr::from(([0u8; 4], 0))), self.v6);
+        if socket.send_to(&t.packet, to).is_ok() {
+            engine.on_sent_batch(std::iter::once(t));
+            return Some(Progress::Done);
+        }
+        // Full, refused or failed: the usual send takes it from here (it retries, waits
+        // for room, or counts the failure).
+        self.in_flight.push_back(t);
+        Some(self.flush(engine, now))
     }
 
     fn idle(&self) -> bool {

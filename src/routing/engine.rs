@@ -10,6 +10,10 @@
 //!            ifc = engine.add_stream_interface(device, …, now)             (a serial port)
 //! input:     engine.handle_datagram(ifc, peer, bytes, now)    every datagram received
 //!            engine.handle_stream(ifc, bytes, now)            every chunk read
+//! direct:    engine.handle_datagram_direct(…) for a datagram read on its own; then at
+//!            once, if engine.direct_interface() names one, its driver sends
+//!            engine.take_direct(ifc) if it has nothing in flight, else
+//!            engine.queue_direct()                            (see `engine/direct.rs`)
 //! ready:     while let Some(ifc) = engine.poll_ready() { flush ifc }   (only those: an
 //!            interface never named has nothing to send; see [`Engine::poll_ready`])
 //! output:    engine.poll_transmit(ifc, now, room, &mut queue)   then send what it gave;
@@ -27,6 +31,7 @@
 //! counter. The routing decisions themselves are the [`Router`]'s.
 
 mod configure;
+mod direct;
 mod flight_log;
 mod input;
 mod interfaces;
@@ -122,6 +127,9 @@ pub struct Engine {
     heartbeat: Option<OwnHeartbeat>,
     /// File writes of a flight logger replaced by a reload, not yet taken.
     flight_log_leftover: Vec<crate::flight_log::LogWrite>,
+    /// A packet held out of its queue for a direct send by the driver of this interface
+    /// (see `engine/direct.rs`).
+    direct: Option<(InterfaceId, crate::routing::router::Direct)>,
 }
 
 /// The parts of the engine every received frame goes through, apart from the
@@ -209,6 +217,7 @@ impl Engine {
             due: Vec::new(),
             heartbeat: None,
             flight_log_leftover: Vec::new(),
+            direct: None,
         }
     }
 

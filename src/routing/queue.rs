@@ -195,6 +195,18 @@ impl PacketQueue {
         Some(p)
     }
 
+    /// Lets a packet of `cost` bytes pass this queue while it is empty, without storing
+    /// it: what a push and an immediate pop would leave, i.e. the high-water mark sees
+    /// it. False, and nothing changed, if the queue holds packets or the packet alone
+    /// exceeds the capacity (a push would drop it): queue it then.
+    pub(crate) fn pass(&mut self, cost: usize) -> bool {
+        if self.len != 0 || cost > self.capacity {
+            return false;
+        }
+        self.high_water = self.high_water.max(cost);
+        true
+    }
+
     /// The next packet to send, without removing it.
     pub fn peek(&self) -> Option<&Packet> {
         self.occupied(false)

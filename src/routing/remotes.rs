@@ -112,6 +112,14 @@ impl Remotes {
         })
     }
 
+    /// The address of link `link`, whose turn it takes: the turn passes to the link
+    /// after it, as after [`Remotes::end_turn`].
+    pub(crate) fn take_turn(&mut self, link: LinkId) -> Option<SocketAddr> {
+        let index = self.order.iter().position(|(l, _)| *l == link)?;
+        self.next_turn = (index + 1) % self.order.len();
+        Some(self.order[index].1)
+    }
+
     /// Passes the turn to the link after the one that just had `turn`.
     #[inline]
     pub(crate) fn end_turn(&mut self, turn: &Turn) {

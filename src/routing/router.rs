@@ -20,7 +20,9 @@ use crate::filter::{CacheStats, Filter, FilterCounts, cache};
 use crate::time::Timestamp;
 use crate::wire::Frame;
 
+mod direct;
 mod redundancy;
+pub(crate) use direct::Direct;
 use redundancy::Redundancy;
 
 /// Packets kept for reuse once sent (see [`Router::recycle`]): at most this many, a few
@@ -67,11 +69,21 @@ pub struct Output {
     pub queued: Vec<LinkId>,
     /// Packets dropped because a destination queue was full (including evictions).
     pub queue_drops: u64,
+    /// A packet held out of its empty queue to be sent at once, when the caller allowed
+    /// it ([`Output::cut_through`]; see `router/direct.rs`).
+    pub(crate) direct: Option<Direct>,
+    /// Set by the caller: this call may hold one packet out of its queue in
+    /// [`Output::direct`]. Not cleared by [`Output::clear`].
+    pub(crate) cut_through: bool,
 }
 
 impl Output {
     /// Empties the output for the next call.
     pub fn clear(&mut self) {
+        debug_assert!(
+            self.direct.is_none(),
+            "a held packet is taken or queued first"
+        );
         self.events.clear();
         self.queued.clear();
         self.queue_drops = 0;
@@ -440,8 +452,22 @@ impl Router {
         }
     }
 
-    /// Queues `packet` on link `i`, within the link's and the shared capacity.
+    /// Queues `packet` on link `i`, within the link's and the shared capacity, or holds
+    /// it out of the link's empty queue to be sent at once (see `direct.rs`).
     fn push(&mut self, i: usize, packet: Packet, priority: i32, out: &mut Output) {
+        if out.direct.is_some() {
+            self.queue_held_if_observed(i, PacketQueue::cost_of(&packet), out);
+        } else if out.cut_through {
+            let Err(packet) = self.hold(i, packet, priority, out) else {
+                return;
+            };
+            return self.enqueue(i, packet, priority, out);
+        }
+        self.enqueue(i, packet, priority, out);
+    }
+
+    /// Queues `packet` on link `i`, within the link's and the shared capacity.
+    fn enqueue(&mut self, i: usize, packet: Packet, priority: i32, out: &mut Output) {
         let cost = PacketQueue::cost_of(&packet);
         if self.queued_bytes.saturating_add(cost) > self.options.total_queue_capacity
             && !self.make_room(cost, priority, out)

@@ -25,6 +25,7 @@ mod docs_examples;
 mod filter_memo;
 mod rate_caps;
 mod routing_cases;
+mod routing_direct_props;
 mod routing_engine;
 mod routing_flight_log;
 mod routing_queues_props;

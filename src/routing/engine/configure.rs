@@ -125,6 +125,7 @@ impl Engine {
         keys: &[Option<SigningKey>],
         now: Timestamp,
     ) -> Reconfigured {
+        self.settle_direct();
         let key_of = |i: usize| keys.get(i).and_then(Option::as_ref);
         let parsing_changed = self.set_parsing(config);
         let rules = reload::plan_rules(&self.config, config);
@@ -269,6 +270,7 @@ impl Engine {
     /// not open (a port taken by another program): the configuration runs without it,
     /// and the next reload tries it again.
     pub fn unconfigure(&mut self, id: InterfaceId) {
+        self.settle_direct();
         let Some(n) = self.configured.iter().position(|c| c.id == id) else {
             return;
         };

@@ -13,6 +13,7 @@ impl Engine {
         bytes: &[u8],
         now: Timestamp,
     ) {
+        self.settle_direct();
         let Some(Interface {
             parser,
             tail,
@@ -89,6 +90,7 @@ impl Engine {
 
     /// Routes the frames completed by `bytes`, read from stream interface `id`.
     pub fn handle_stream(&mut self, id: InterfaceId, bytes: &[u8], now: Timestamp) {
+        self.settle_direct();
         let Some(Interface {
             parser,
             tail,
@@ -132,10 +134,10 @@ impl Engine {
     /// Moves the router's events into the notices and readies its output for reuse.
     pub(super) fn take_output(&mut self) {
         self.send_flight_log_frames();
-        for link in &self.core.out.queued {
-            if let Some(&id) = self.owner.get(link) {
-                self.ready.mark(id);
-            }
+        self.mark_queued();
+        if self.core.out.direct.is_some() {
+            self.resolve_held();
+            self.mark_queued();
         }
         if !self.core.out.events.is_empty() {
             self.core
@@ -143,5 +145,15 @@ impl Engine {
                 .extend(self.core.out.events.drain(..).map(Notice::Log));
         }
         self.core.out.clear();
+    }
+
+    /// Names the interfaces of the links that got a packet queued in
+    /// [`Engine::poll_ready`].
+    pub(super) fn mark_queued(&mut self) {
+        for link in &self.core.out.queued {
+            if let Some(&id) = self.owner.get(link) {
+                self.ready.mark(id);
+            }
+        }
     }
 }

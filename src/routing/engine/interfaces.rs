@@ -152,6 +152,7 @@ impl Engine {
         peer: SocketAddr,
         now: Timestamp,
     ) -> Option<InterfaceId> {
+        self.settle_direct();
         let server = self.interfaces.get_mut(listener.0)?;
         let Kind::Listener {
             limits,

@@ -51,6 +51,12 @@ impl ReadySet {
         Some(id)
     }
 
+    /// True if interface `id` is waiting.
+    #[inline]
+    pub(super) fn contains(&self, id: InterfaceId) -> bool {
+        self.queued.get(id.0).copied().unwrap_or(false)
+    }
+
     /// True if some interface is waiting.
     #[inline]
     pub(super) fn is_empty(&self) -> bool {

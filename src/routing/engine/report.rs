@@ -26,6 +26,7 @@ impl Engine {
     /// Every counter at `now`, with the rates since the previous call (take one about
     /// once a second: each call is a sample of the rate history).
     pub fn stats(&mut self, now: Timestamp) -> StatsSnapshot {
+        self.settle_direct();
         snapshot::snapshot(
             snapshot::Sources {
                 router: &mut self.core.router,

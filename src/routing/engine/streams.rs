@@ -18,6 +18,7 @@ impl Engine {
     /// queued for a client that stayed down too long is dropped now (stale telemetry is
     /// not replayed).
     pub fn stream_opened(&mut self, id: InterfaceId, now: Timestamp) {
+        self.settle_direct();
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
@@ -49,6 +50,7 @@ impl Engine {
     /// Opening interface `id` failed at `now`: it is tried again after a backoff (said
     /// once per outage, not once per attempt).
     pub fn stream_open_failed(&mut self, id: InterfaceId, now: Timestamp, error: &dyn Display) {
+        self.settle_direct();
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
@@ -72,6 +74,7 @@ impl Engine {
     /// error): held-back bytes are dropped; a configured stream is opened again after
     /// its first wait, an accepted connection is removed with its link.
     pub fn stream_lost(&mut self, id: InterfaceId, now: Timestamp, why: &dyn Display) {
+        self.settle_direct();
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };

@@ -31,6 +31,7 @@ impl Engine {
     /// more than once, is harmless: only what is due runs, and only the interfaces
     /// whose deadline passed are visited.
     pub fn handle_timeout(&mut self, now: Timestamp) {
+        self.settle_direct();
         let mut due = std::mem::take(&mut self.due);
         self.deadlines.take_due(now, &mut due);
         for &id in &due {

@@ -19,6 +19,7 @@ impl Engine {
         room: usize,
         queue: &mut VecDeque<Transmit>,
     ) {
+        self.settle_direct();
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
