@@ -15,7 +15,8 @@
 //! divided by the frames sent in it (the router's idle wake-ups in the window count).
 //! Under each table, every mavtables build against mavlink-router paired by round: the
 //! median ratio of CPU per frame and of p50, with a 95% interval of that median (at
-//! least 6 rounds give one; 9 or more give a useful one at 1k frames/s).
+//! least 6 rounds give one; 9 or more give a useful one at 1k frames/s); and with
+//! `MAVTABLES_BEFORE`, this build against each build compared, paired the same way.
 
 #![forbid(unsafe_code)]
 
@@ -204,37 +205,77 @@ fn main() {
 /// back in every round, so the machine's drift over the run cancels): the median of
 /// the per-round ratios of CPU per frame and of p50 latency, with the 95% interval of
 /// that median, and whether the goal (no higher than mavlink-router) is shown
-/// met, shown missed, or within the noise of this run.
+/// met, shown missed, or within the noise of this run. Then, when builds to compare
+/// were given, this build against each of them the same way: a change judged against
+/// the build before it.
 fn paired_verdict(contestants: &[Contestant], r: usize) {
     let Some(theirs) = contestants.iter().find(|c| c.name == "mavlink-router") else {
         return;
     };
     println!("\nmavtables ÷ mavlink-router, paired by round (median [95% interval]):\n");
+    let goal = ["below: goal met", "above: goal not met"];
     for c in contestants
         .iter()
         .filter(|c| c.name.starts_with("mavtables"))
     {
-        let pairs = c.trials[r].iter().zip(&theirs.trials[r]);
-        let cpu = pairs
-            .clone()
-            .filter_map(|(a, b)| Some(a.cpu_per_frame_us()? / b.cpu_per_frame_us()?))
-            .collect();
-        let p50 = pairs
-            .map(|(a, b)| a.latency_us(0.5) / b.latency_us(0.5))
-            .collect();
-        let show = |v| match light::median_interval(v) {
-            Some((m, lo, hi)) => {
-                let verdict = if hi < 1.0 {
-                    "below: goal met"
-                } else if lo > 1.0 {
-                    "above: goal not met"
-                } else {
-                    "within this run's noise"
-                };
-                format!("{m:.2} [{lo:.2}–{hi:.2}], {verdict}")
-            }
-            None => "–".to_string(),
-        };
-        println!("- {}: CPU/frame {}; p50 {}", c.name, show(cpu), show(p50));
+        let (cpu, p50) = paired_ratios(c, theirs, r);
+        println!(
+            "- {}: CPU/frame {}; p50 {}",
+            c.name,
+            show_ratio(cpu, goal),
+            show_ratio(p50, goal)
+        );
+    }
+    let Some(ours) = contestants.iter().find(|c| c.name == "mavtables") else {
+        return;
+    };
+    let befores: Vec<&Contestant> = contestants
+        .iter()
+        .filter(|c| c.name.starts_with("mavtables "))
+        .collect();
+    if befores.is_empty() {
+        return;
+    }
+    println!("\nmavtables ÷ each build compared, paired by round (median [95% interval]):\n");
+    for before in befores {
+        let (cpu, p50) = paired_ratios(ours, before, r);
+        let change = ["lower", "higher"];
+        println!(
+            "- ÷ {}: CPU/frame {}; p50 {}",
+            before.name,
+            show_ratio(cpu, change),
+            show_ratio(p50, change)
+        );
+    }
+}
+
+/// Per round, `a`'s CPU per frame and p50 latency divided by `b`'s at rate `r`.
+fn paired_ratios(a: &Contestant, b: &Contestant, r: usize) -> (Vec<f64>, Vec<f64>) {
+    let pairs = a.trials[r].iter().zip(&b.trials[r]);
+    let cpu = pairs
+        .clone()
+        .filter_map(|(a, b)| Some(a.cpu_per_frame_us()? / b.cpu_per_frame_us()?))
+        .collect();
+    let p50 = pairs
+        .map(|(a, b)| a.latency_us(0.5) / b.latency_us(0.5))
+        .collect();
+    (cpu, p50)
+}
+
+/// The median of `ratios` with its 95% interval, and what it shows: `says[0]` when the
+/// whole interval is below 1, `says[1]` when above, else that it is within the noise.
+fn show_ratio(ratios: Vec<f64>, says: [&str; 2]) -> String {
+    match light::median_interval(ratios) {
+        Some((m, lo, hi)) => {
+            let verdict = if hi < 1.0 {
+                says[0]
+            } else if lo > 1.0 {
+                says[1]
+            } else {
+                "within this run's noise"
+            };
+            format!("{m:.2} [{lo:.2}–{hi:.2}], {verdict}")
+        }
+        None => "–".to_string(),
     }
 }
