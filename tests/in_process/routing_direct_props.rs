@@ -210,11 +210,7 @@ proptest! {
         per_link in 1usize..20,
         shared in 2usize..40,
     ) {
-        let options = RouterOptions {
-            queue_capacity: per_link * 100,
-            total_queue_capacity: shared * 100,
-            ..RouterOptions::default()
-        };
+        let options = routing::queue_options(per_link * 100, shared * 100);
         let mut usual = Side::new(options);
         let mut direct = Side::new(options);
         let mut now = Timestamp::ZERO;

@@ -4,7 +4,6 @@
 
 use crate::routing;
 
-use mavtables::routing::RouterOptions;
 use proptest::prelude::*;
 use routing::{Net, frame};
 
@@ -46,11 +45,7 @@ proptest! {
         per_link in 1usize..12,
         shared in 1usize..30,
     ) {
-        let options = RouterOptions {
-            queue_capacity: per_link * 300,
-            total_queue_capacity: shared * 300,
-            ..RouterOptions::default()
-        };
+        let options = routing::queue_options(per_link * 300, shared * 300);
         let mut net = Net::with_options(
             "serial { device ./ttyS0; }\nchain default {\n    accept with priority 2 if ATTITUDE;\n    accept with priority -1 if to 3.3;\n    accept;\n}\n",
             options,

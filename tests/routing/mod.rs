@@ -11,6 +11,16 @@ use mavtables::routing::{LinkId, Output, Router, RouterOptions, Timestamp};
 use mavtables::wire::Frame;
 use mavtables::wire::encode::{Header, encode_v1, encode_v2};
 
+/// The default router options with queues of `per_link` bytes each and `shared` bytes
+/// in all.
+pub fn queue_options(per_link: usize, shared: usize) -> RouterOptions {
+    RouterOptions {
+        queue_capacity: per_link,
+        total_queue_capacity: shared,
+        ..RouterOptions::default()
+    }
+}
+
 /// Parses `S.C`.
 pub fn addr(s: &str) -> Address {
     let (a, b) = s.split_once('.').expect("S.C");
