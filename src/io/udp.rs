@@ -9,7 +9,7 @@
 
 use std::collections::VecDeque;
 use std::io;
-use std::net::{IpAddr, SocketAddr, UdpSocket};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::os::fd::{AsRawFd, RawFd};
 
 use socket2::{Domain, Protocol, Socket, Type};
@@ -36,6 +36,10 @@ const BATCHES_PER_TURN: usize = 8;
 /// Datagrams arriving closer together than this (above ~20k a second) are read in
 /// batches; slower traffic one datagram per wake-up.
 const BURST_GAP: Duration = Duration::from_micros(50);
+
+/// Where a datagram without a peer would go: nowhere (its send fails and is counted).
+/// Every datagram of a UDP interface has a peer.
+const NOWHERE: SocketAddr = SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0));
 
 /// Binds a non-blocking socket with large buffers at `local`.
 fn bind(local: SocketAddr, label: &str) -> io::Result<UdpSocket> {
@@ -322,13 +326,11 @@ impl Driver for UdpDriver {
             }
             let wanted = self.in_flight.len();
             let v6 = self.v6;
-            // Every datagram of a UDP interface has a peer; a missing one would fail to
-            // send and be counted, not shift the others.
-            let nowhere = SocketAddr::from(([0u8; 4], 0));
+            // A missing peer fails to send and is counted, and shifts no other datagram.
             let batch = self
                 .in_flight
                 .iter()
-                .map(|t| (on_wire(t.to.unwrap_or(nowhere), v6), &t.packet[..]));
+                .map(|t| (on_wire(t.to.unwrap_or(NOWHERE), v6), &t.packet[..]));
             match sys::send_batch(socket, &mut self.send_scratch, batch, self.gso) {
                 Ok(sent) => {
                     let sent_here = sent.min(wanted);
@@ -371,7 +373,7 @@ impl Driver for UdpDriver {
         }
         let socket = self.socket.as_ref()?;
         let t = engine.take_direct(self.interface)?;
-        let to = on_wire(t.to.unwrap_or(SocketAddr::from(([0u8; 4], 0))), self.v6);
+        let to = on_wire(t.to.unwrap_or(NOWHERE), self.v6);
         if socket.send_to(&t.packet, to).is_ok() {
             engine.on_sent_batch(std::iter::once(t));
             return Some(Progress::Done);

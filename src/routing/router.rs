@@ -455,14 +455,17 @@ impl Router {
     /// Queues `packet` on link `i`, within the link's and the shared capacity, or holds
     /// it out of the link's empty queue to be sent at once (see `direct.rs`).
     fn push(&mut self, i: usize, packet: Packet, priority: i32, out: &mut Output) {
-        if out.direct.is_some() {
+        let packet = if out.direct.is_some() {
             self.queue_held_if_observed(i, PacketQueue::cost_of(&packet), out);
+            packet
         } else if out.cut_through {
-            let Err(packet) = self.hold(i, packet, priority, out) else {
-                return;
-            };
-            return self.enqueue(i, packet, priority, out);
-        }
+            match self.hold(i, packet, priority, out) {
+                Ok(()) => return,
+                Err(packet) => packet,
+            }
+        } else {
+            packet
+        };
         self.enqueue(i, packet, priority, out);
     }
 

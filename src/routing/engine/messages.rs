@@ -29,7 +29,6 @@ impl Engine {
     /// sample): a frame never continues in the next message, so bytes left over are
     /// dropped, and one bad message cannot spoil the next.
     pub fn handle_message(&mut self, id: InterfaceId, bytes: &[u8], now: Timestamp) {
-        self.settle_direct();
         self.handle_stream(id, bytes, now);
         if let Some(interface) = self.interfaces.get_mut(id.0)
             && interface.parser.pending_len() > 0

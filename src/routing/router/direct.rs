@@ -54,27 +54,18 @@ impl Router {
 
     /// Before a packet of `cost` bytes is queued on link `i`: queues the held packet
     /// first if the two would otherwise tell apart from a queue that held it all along
-    /// (the same link, or the shared capacity running out).
+    /// (the same link, or the shared capacity running out). It is queued as it would
+    /// have been when it was held: its queue was empty then and has been left alone
+    /// since, so it fits as it did.
     pub(super) fn queue_held_if_observed(&mut self, i: usize, cost: usize, out: &mut Output) {
-        let same_link = out
-            .direct
-            .as_ref()
-            .is_some_and(|d| d.link == self.links[i].id());
-        if same_link || self.queued_bytes.saturating_add(cost) > self.options.total_queue_capacity {
-            self.queue_held(out);
-        }
-    }
-
-    /// Queues the held packet after all, as it would have been queued when it was held
-    /// (its queue was empty then and has been left alone since, so it fits as it did).
-    pub(crate) fn queue_held(&mut self, out: &mut Output) {
-        if let Some(held) = out.direct.take() {
+        let link = self.links[i].id();
+        let crowded = self.queued_bytes.saturating_add(cost) > self.options.total_queue_capacity;
+        if let Some(held) = out.direct.take_if(|d| crowded || d.link == link) {
             self.queue_direct(held, out);
         }
     }
 
-    /// Queues `held`, a packet held out of its queue, after all (see
-    /// [`Router::queue_held`]).
+    /// Queues `held`, a packet held out of its queue, after all.
     pub(crate) fn queue_direct(&mut self, held: Direct, out: &mut Output) {
         self.queued_bytes -= PacketQueue::cost_of(&held.packet);
         if let Some(i) = self.index(held.link) {
