@@ -14,6 +14,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+use common::router::Scratch;
 use common::{data, read_data};
 use mavtables::commands::inspect::{self, Options};
 use mavtables::commands::replay;
@@ -23,12 +24,6 @@ const BIN: &str = env!("CARGO_BIN_EXE_mavtables");
 
 fn golden_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/inspect.tsv")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavtables-capture-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir.join(name)
 }
 
 /// A pcap file header (little-endian, µs, link type `DLT_NULL` like `rural.pcap`).
@@ -159,8 +154,8 @@ struct Case {
 
 /// Every case. The test vectors run one directory at a time (`inspect` takes many
 /// files), the flight and the generated captures one by one, from the file and from
-/// standard input.
-fn cases() -> Vec<Case> {
+/// standard input. The generated captures are written into `scratch`.
+fn cases(scratch: &Scratch) -> Vec<Case> {
     let modes = || [vec![], vec!["--json"], vec!["--check"]];
     let mut out = Vec::new();
     for dir in ["mavlink_full", "seed_scaled_pressure"] {
@@ -183,7 +178,7 @@ fn cases() -> Vec<Case> {
         .map(|f| (f.to_string(), data(f)))
         .collect();
     for (name, bytes) in generated() {
-        let path = scratch(name);
+        let path = scratch.dir.join(name);
         std::fs::write(&path, bytes).expect("write generated capture");
         single.push((format!("generated/{name}"), path));
     }
@@ -241,7 +236,7 @@ fn hex(d: &[u8]) -> String {
 /// Runs `bin inspect ARGS FILES` (or `-` with the one file on standard input) and
 /// returns "stdout digest, stderr digest, exit code", with the data and scratch
 /// folders in file names written as `DATA` and `SCRATCH`.
-fn digest(bin: &str, case: &Case, stdin: bool) -> String {
+fn digest(bin: &str, case: &Case, stdin: bool, scratch: &Scratch) -> String {
     let mut cmd = Command::new(bin);
     cmd.arg("inspect").args(&case.args);
     if stdin {
@@ -252,7 +247,7 @@ fn digest(bin: &str, case: &Case, stdin: bool) -> String {
     }
     let out = cmd.output().expect("run inspect");
     let data_dir = data("").display().to_string();
-    let scratch_dir = scratch("").display().to_string();
+    let scratch_dir = format!("{}/", scratch.dir.display());
     let first = case.files[0].display().to_string();
     let norm = |b: &[u8]| {
         let text = String::from_utf8_lossy(b);
@@ -282,11 +277,12 @@ fn digest(bin: &str, case: &Case, stdin: bool) -> String {
 
 #[test]
 fn output_is_byte_identical_to_the_in_memory_reader_for_files_and_standard_input() {
-    let cases = cases();
+    let scratch = Scratch::new("capture-stream");
+    let cases = cases(&scratch);
     if let Ok(old) = std::env::var("MAVTABLES_GOLDEN_BIN") {
         let mut tsv = String::from("# case\targuments\tstdout sha256\tstderr sha256\texit code\n");
         for case in &cases {
-            let d = digest(&old, case, false);
+            let d = digest(&old, case, false, &scratch);
             let _ = writeln!(tsv, "{}\t{}\t{d}", case.name, case.args.join(" "));
         }
         std::fs::create_dir_all(golden_path().parent().expect("dir")).expect("golden dir");
@@ -306,7 +302,7 @@ fn output_is_byte_identical_to_the_in_memory_reader_for_files_and_standard_input
             if stdin && !case.stdin {
                 continue;
             }
-            let got = format!("{prefix}{}", digest(BIN, case, stdin));
+            let got = format!("{prefix}{}", digest(BIN, case, stdin, &scratch));
             if got != *want {
                 wrong.push(format!(
                     "{} {} {:?}",

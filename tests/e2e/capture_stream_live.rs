@@ -12,6 +12,7 @@ use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
 
 use common::read_data;
+use common::router::Scratch;
 use mavtables::capture::tlog;
 
 const BIN: &str = env!("CARGO_BIN_EXE_mavtables");
@@ -119,7 +120,8 @@ fn a_tlog_and_a_raw_stream_on_standard_input_are_listed_frame_by_frame() {
     // The same frames as a raw stream; JSON, one object per frame.
     let frames: Vec<Vec<u8>> = records.iter().map(|r| r.frame.to_vec()).collect();
     let raw: Vec<u8> = frames.concat();
-    let path = std::env::temp_dir().join(format!("mavtables-live-{}.raw", std::process::id()));
+    let scratch = Scratch::new("live");
+    let path = scratch.dir.join("flight.raw");
     std::fs::write(&path, &raw).expect("write raw");
     let out = Command::new(BIN)
         .args(["inspect", "--json", &path.display().to_string()])
@@ -134,15 +136,12 @@ fn a_tlog_and_a_raw_stream_on_standard_input_are_listed_frame_by_frame() {
 }
 
 /// A tlog of `copies` back-to-back copies of the flight (timestamps moved on by the
-/// flight's span each time, so it reads as one long flight).
-fn long_tlog(copies: usize) -> PathBuf {
+/// flight's span each time, so it reads as one long flight), in `scratch`.
+fn long_tlog(scratch: &Scratch, copies: usize) -> PathBuf {
     let data = read_data("flight/rural.tlog");
     let recs: Vec<tlog::Record<'_>> = tlog::records(&data).map(|r| r.expect("record")).collect();
     let span = recs[recs.len() - 1].timestamp_us - recs[0].timestamp_us + 1000;
-    let path = std::env::temp_dir().join(format!(
-        "mavtables-long-{}-{copies}.tlog",
-        std::process::id()
-    ));
+    let path = scratch.dir.join(format!("long-{copies}.tlog"));
     let mut out = std::io::BufWriter::new(std::fs::File::create(&path).expect("create"));
     let mut copy = data.clone();
     for i in 0..copies as u64 {
@@ -183,12 +182,12 @@ fn peak_rss_kb(file: &Path, copies: usize) -> u64 {
 fn memory_stays_flat_whatever_the_file_size() {
     // 30 and 120 copies of the flight: 38 MB and 151 MB.
     let (small, large) = (30, 120);
-    let (small_file, large_file) = (long_tlog(small), long_tlog(large));
+    // Removed with the scratch directory, however the test ends.
+    let scratch = Scratch::new("long-tlog");
+    let (small_file, large_file) = (long_tlog(&scratch, small), long_tlog(&scratch, large));
     let small_kb = peak_rss_kb(&small_file, small);
     let large_kb = peak_rss_kb(&large_file, large);
     let size = std::fs::metadata(&large_file).expect("size").len();
-    let _ = std::fs::remove_file(&small_file);
-    let _ = std::fs::remove_file(&large_file);
     eprintln!("peak RSS: {small_kb} kB for 38 MB, {large_kb} kB for {size} bytes");
     assert!(large_kb < 20_000, "{large_kb} kB for a {size}-byte file");
     assert!(

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use common::router::Scratch;
 use common::{Verdict, data, manifest, read_data, run_py};
 use mavtables::wire::Parser;
 use serialport::SerialPort;
@@ -25,12 +26,6 @@ fn mavtables(args: &[&str]) -> Output {
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavtables-capture-tools-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir.join(name)
 }
 
 /// Runs `inspect --check EXTRA... FILES` once and returns each file's verdict.
@@ -118,7 +113,8 @@ fn json_decoding_matches_pymavlink_on_the_whole_flight() {
         text(&out.stderr).contains("33261 frames"),
         "summary goes to stderr with --json"
     );
-    let ours = scratch("rural.jsonl");
+    let scratch = Scratch::new("capture-tools");
+    let ours = scratch.dir.join("rural.jsonl");
     std::fs::write(&ours, &out.stdout).expect("write ours");
     let report = run_py(
         "decode_compare.py",
@@ -201,13 +197,14 @@ fn filters_select_by_type_source_and_target() {
 
 #[test]
 fn bad_input_gives_a_clear_message_and_exit_code() {
-    let empty = scratch("empty.bin");
+    let scratch = Scratch::new("capture-tools");
+    let empty = scratch.dir.join("empty.bin");
     std::fs::write(&empty, b"").expect("write");
     let out = mavtables(&["inspect", "--check", &empty.display().to_string()]);
     assert_eq!(out.status.code(), Some(0), "an empty file is zero frames");
     assert!(text(&out.stdout).ends_with("empty.bin: valid (0 frames)\n"));
 
-    let garbage = scratch("garbage.bin");
+    let garbage = scratch.dir.join("garbage.bin");
     std::fs::write(&garbage, b"this is not mavlink at all").expect("write");
     let out = mavtables(&["inspect", &garbage.display().to_string()]);
     assert_eq!(
@@ -220,7 +217,7 @@ fn bad_input_gives_a_clear_message_and_exit_code() {
 
     // A truncated tlog: the record cut in half is reported at its offset.
     let tlog = read_data("flight/rural.tlog");
-    let cut = scratch("cut.tlog");
+    let cut = scratch.dir.join("cut.tlog");
     std::fs::write(&cut, &tlog[..1000]).expect("write");
     let out = mavtables(&["inspect", "--check", &cut.display().to_string()]);
     assert_eq!(out.status.code(), Some(1));
@@ -235,7 +232,7 @@ fn bad_input_gives_a_clear_message_and_exit_code() {
     let first_proto = 24 + 16 + 4 + 9;
     assert_eq!(pcap[first_proto], 17);
     pcap[first_proto] = 6;
-    let tcp = scratch("tcp.pcap");
+    let tcp = scratch.dir.join("tcp.pcap");
     std::fs::write(&tcp, &pcap[..24 + 16 + 73]).expect("write");
     let out = mavtables(&["inspect", &tcp.display().to_string()]);
     assert!(out.status.success());
@@ -252,8 +249,8 @@ fn bad_input_gives_a_clear_message_and_exit_code() {
     assert_eq!(no_file.status.code(), Some(1));
 }
 
-/// The first `n` records of the flight as a tlog file.
-fn short_tlog(n: usize) -> (PathBuf, Vec<Vec<u8>>) {
+/// The first `n` records of the flight as a tlog file in `scratch`.
+fn short_tlog(scratch: &Scratch, n: usize) -> (PathBuf, Vec<Vec<u8>>) {
     let data = read_data("flight/rural.tlog");
     let mut end = 0;
     let mut frames = Vec::new();
@@ -262,7 +259,7 @@ fn short_tlog(n: usize) -> (PathBuf, Vec<Vec<u8>>) {
         end = rec.offset as usize + 8 + rec.frame.len();
         frames.push(rec.frame.to_vec());
     }
-    let path = scratch(&format!("first{n}.tlog"));
+    let path = scratch.dir.join(format!("first{n}.tlog"));
     std::fs::write(&path, &data[..end]).expect("write");
     (path, frames)
 }
@@ -270,7 +267,8 @@ fn short_tlog(n: usize) -> (PathBuf, Vec<Vec<u8>>) {
 #[test]
 fn replay_to_udp_keeps_every_frame_and_the_recorded_timing() {
     // The first 300 frames span about 4.1 s of flight; at speed 10 that is about 0.4 s.
-    let (path, frames) = short_tlog(300);
+    let scratch = Scratch::new("capture-tools");
+    let (path, frames) = short_tlog(&scratch, 300);
     let span_us = {
         let d = std::fs::read(&path).expect("read");
         let ts: Vec<u64> = mavtables::capture::tlog::records(&d)
@@ -318,7 +316,8 @@ fn replay_to_udp_keeps_every_frame_and_the_recorded_timing() {
 
 #[test]
 fn replay_to_a_serial_port_at_full_speed() {
-    let (path, frames) = short_tlog(2000);
+    let scratch = Scratch::new("capture-tools");
+    let (path, frames) = short_tlog(&scratch, 2000);
     let (mut master, slave) = serialport::TTYPort::pair().expect("pseudo-terminal pair");
     let device = slave.name().expect("pty name");
     let child = Command::new(BIN)

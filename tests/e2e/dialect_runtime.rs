@@ -3,6 +3,7 @@
 //! errors, `--ast`, the parser, the filter and a reload through the routing core.
 
 use crate::common;
+use common::router::Scratch;
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -17,14 +18,6 @@ use mavtables::wire::{Checks, Parser};
 
 fn dialects() -> PathBuf {
     common::data("dialects")
-}
-
-/// A scratch directory of this test's own, emptied first.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavtables-dialect-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
 }
 
 /// Every message of `file` and its includes as we lay it out: `id name crc min max`.
@@ -263,7 +256,8 @@ const ONE: &str = r#"<mavlink><messages>
 
 #[test]
 fn dialect_problems_are_located_errors() {
-    let dir = scratch("errors");
+    let scratch = Scratch::new("dialect-errors");
+    let dir = scratch.dir.clone();
     write(&dir, "one.xml", ONE);
     let first_line = |src: &str| {
         error_in(&dir, src)
@@ -362,13 +356,12 @@ fn dialect_problems_are_located_errors() {
     write(&dir, "long.xml", &ONE.replace("uint8_t", "uint64_t[40]"));
     assert!(first_line("dialect long.xml;").contains("payload of 320 bytes"));
     // Rules naming a message of a file that failed are not reported twice over.
-    let dir2 = dir.clone();
-    let _ = std::fs::remove_dir_all(dir2);
 }
 
 #[test]
 fn a_dialect_is_read_relative_to_the_configuration_file() {
-    let dir = scratch("relative");
+    let scratch = Scratch::new("dialect-relative");
+    let dir = scratch.dir.clone();
     write(&dir, "one.xml", ONE);
     let conf = dir.join("router.conf");
     std::fs::write(
@@ -382,7 +375,6 @@ fn a_dialect_is_read_relative_to_the_configuration_file() {
         Some(60_200)
     );
     assert_eq!(from.config.dialect_files, [dir.join("one.xml")]);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -478,7 +470,8 @@ fn the_documented_custom_payload_example_loads_and_checks_its_frames() {
     ))
     .expect("docs");
     let marker = "### A custom payload, worked through";
-    let dir = scratch("doc");
+    let scratch = Scratch::new("dialect-doc");
+    let dir = scratch.dir.clone();
     write(&dir, "payload.xml", &doc_block(&doc, marker, 0));
     for f in ["common.xml", "standard.xml", "minimal.xml"] {
         std::fs::copy(dialects().join(f), dir.join(f)).expect("copy");
@@ -499,7 +492,6 @@ fn the_documented_custom_payload_example_loads_and_checks_its_frames() {
     let unknown = doc_block(&doc, "## `unknown_messages`", 1);
     config::load(&unknown)
         .unwrap_or_else(|e| panic!("{}", config::render_errors("doc", &unknown, &e)));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -543,7 +535,8 @@ fn damaged_xml_is_an_error_with_a_line_never_a_panic() {
 /// and a UDP socket on 127.0.0.1.
 #[test]
 fn inspect_and_replay_read_custom_messages_with_dialect() {
-    let dir = scratch("tools");
+    let scratch = Scratch::new("dialect-tools");
+    let dir = scratch.dir.clone();
     let config = payload_config("");
     let status = config.dialect.by_name("MY_PAYLOAD_STATUS").expect("loaded");
     let mut payload = vec![0u8; 37];
