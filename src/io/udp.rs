@@ -277,25 +277,25 @@ impl Driver for UdpDriver {
                     return Progress::Done;
                 }
             };
-            if !self.batching {
-                // One datagram, and the loop turns right after it: what it routes may
-                // be sent at once (`Engine::handle_datagram_direct`).
-                for (from, bytes) in self.batch.iter() {
-                    if let Some(from) = from {
+            // One datagram read on its own, and the loop turns right after it: what it
+            // routes may be sent at once (`Engine::handle_datagram_direct`).
+            let single = !self.batching;
+            for (from, bytes) in self.batch.iter() {
+                match from {
+                    Some(from) if single => {
                         engine.handle_datagram_direct(self.interface, from, bytes, now);
                     }
+                    Some(from) => engine.handle_datagram(self.interface, from, bytes, now),
+                    None => {}
                 }
+            }
+            if single {
                 // Two datagrams close together: a burst begins.
                 self.batching = self
                     .last_single
                     .is_some_and(|last| now.saturating_since(last) < BURST_GAP);
                 self.last_single = Some(now);
                 return Progress::Done;
-            }
-            for (from, bytes) in self.batch.iter() {
-                if let Some(from) = from {
-                    engine.handle_datagram(self.interface, from, bytes, now);
-                }
             }
             // Fewer than a full batch: the socket is drained; a datagram arriving later
             // raises a new event. A lone datagram where a burst was: back to one by one.
