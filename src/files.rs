@@ -9,10 +9,13 @@
 //! a FIFO would otherwise wait for a writer) and the opened handle is looked at again, so
 //! that what is read is what was checked even if the path changed in between; at most
 //! one byte more than the limit is read.
+//!
+//! Files mavtables writes by replacing them (the signing state, the list of recordings)
+//! go through [`replace_file`], which only ever removes or overwrites a name of its own.
 
 use std::fmt;
 use std::fs::{File, FileType, Metadata, OpenOptions};
-use std::io::{self, Read};
+use std::io::{self, Read, Write};
 use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
 use std::path::Path;
 
@@ -145,6 +148,11 @@ impl RegularFile {
         Ok(RegularFile { file, metadata })
     }
 
+    /// The opened file, to be read as a stream (a capture of any size).
+    pub(crate) fn into_file(self) -> File {
+        self.file
+    }
+
     /// What `fstat` said of the opened file (its mode, owner and size).
     pub(crate) fn metadata(&self) -> &Metadata {
         &self.metadata
@@ -173,6 +181,39 @@ impl RegularFile {
 /// [`RegularFile::open`] for what is refused).
 pub(crate) fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError> {
     RegularFile::open(path)?.read_all(limit)
+}
+
+/// Replaces the file at `path` with `bytes` so that it is the old file or the new one at
+/// every moment, even across a power loss: `bytes` go to `temp` (a name of mavtables' own
+/// beside `path`: whatever is there is removed first, and a link there is removed, never
+/// followed), created with `mode`, synced and renamed over `path`; then the directory is
+/// synced. When a step fails, the temporary file is removed again.
+pub(crate) fn replace_file(path: &Path, temp: &Path, bytes: &[u8], mode: u32) -> io::Result<()> {
+    match std::fs::remove_file(temp) {
+        Ok(()) => {}
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e),
+    }
+    let written = OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(mode)
+        .open(temp)
+        .and_then(|mut file| {
+            file.write_all(bytes)?;
+            file.sync_all()
+        })
+        .and_then(|()| std::fs::rename(temp, path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(temp);
+        return Err(e);
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+        && let Ok(d) = File::open(dir)
+    {
+        let _ = d.sync_all();
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use super::ast::{Item, SerialSetting, SocketSetting};
 use super::{Config, Diagnostic, Span, parse};
 use crate::files::{FileError, read_regular};
 use crate::signing::SigningKey;
-use crate::signing::state::STATE_FILE_LIMIT;
+use crate::signing::state::{HEADER, STATE_FILE_LIMIT, is_state_file};
 use std::path::Path;
 
 /// The signing key of each of `config.interfaces` (same order; `None` for an interface
@@ -87,13 +87,29 @@ pub enum StateFileError {
     Default(String),
 }
 
+/// The signing state file at `path`, as the router may use it: its bytes, or `None`
+/// when nothing is there. The router reads the file at start and later renames a new
+/// one over it, so only a file it wrote itself may be there: a regular file of at most
+/// [`STATE_FILE_LIMIT`] bytes whose first line is [`HEADER`]. Anything else is refused,
+/// and the error says why (as a predicate of the file: "is a FIFO, not a regular file").
+/// Such a file whose later lines are damaged is still the router's: it is read (the
+/// caller says it cannot use it) and later replaced.
+pub fn read_signing_state(path: &Path) -> Result<Option<Vec<u8>>, String> {
+    match read_regular(path, STATE_FILE_LIMIT) {
+        Ok(bytes) if is_state_file(&bytes) => Ok(Some(bytes)),
+        Ok(_) => Err(format!(
+            "does not hold a mavtables signing state (its first line is not \"{HEADER}\")"
+        )),
+        Err(FileError::NotFound) => Ok(None),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 /// Checks the signing state file `config` uses (see [`Config::signing_state_path`];
-/// `env` looks up an environment variable): when something is at its path, it must be a
-/// regular file of at most [`STATE_FILE_LIMIT`] bytes, since the router reads it at start
-/// and later renames a new file over it. A missing file is fine (it is written later),
-/// and so is one that cannot be read for another reason or does not hold a state: the
-/// router says so when it starts, and starts without it. `src` is the source `config`
-/// was loaded from, for locating the error at the `signing_state` statement.
+/// `env` looks up an environment variable) with [`read_signing_state`]: a missing file
+/// is fine (it is written later); anything but a state file mavtables wrote is an
+/// error. `src` is the source `config` was loaded from, for locating the error at the
+/// `signing_state` statement.
 pub fn check_signing_state(
     config: &Config,
     src: &str,
@@ -102,12 +118,11 @@ pub fn check_signing_state(
     let Some(path) = config.signing_state_path(env) else {
         return Ok(());
     };
-    let e = match read_regular(&path, STATE_FILE_LIMIT) {
-        Ok(_) | Err(FileError::NotFound | FileError::Unreadable(_)) => return Ok(()),
-        Err(e) => e,
+    let Err(e) = read_signing_state(&path) else {
+        return Ok(());
     };
     let message = format!("signing state file {} {e}", path.display());
-    let note = "mavtables reads this file at start and saves the state by renaming a new file over it: name a regular file, or a path where none exists yet";
+    let note = "mavtables reads this file at start and saves the state by renaming a new file over it: name a file it wrote, or a path where none exists yet";
     let Some(written) = &config.signing_state else {
         return Err(StateFileError::Default(format!("{message}; {note}")));
     };

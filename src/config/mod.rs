@@ -33,7 +33,7 @@ pub(crate) mod zenoh_block;
 pub use diagnostic::{Diagnostic, Position};
 pub use file::{FromFile, read_file};
 pub use flight_log::{FlightLog, FlightLogMode, FlightLogProtocol};
-pub use keys::{StateFileError, check_signing_state, read_keys};
+pub use keys::{StateFileError, check_signing_state, read_keys, read_signing_state};
 pub use lines::LineIndex;
 pub use model::{
     Action, Chain, ChainId, Condition, Config, DEFAULT_MAX_PEERS, DEFAULT_STATE_DIRECTORY,

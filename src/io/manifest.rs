@@ -7,12 +7,13 @@
 //! never replaced), and the list is then kept for this run only.
 
 use std::fs::{self, File, Metadata, OpenOptions};
-use std::io::{self, Read, Write};
+use std::io::{self, Read};
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
 use super::{log, sys};
+use crate::files::replace_file;
 use crate::recording::manifest::{self, Created, FileId, Found, MAX_BYTES, Verdict};
 use crate::recording::rotation::Existing;
 use crate::recording::{FilePattern, Manifest};
@@ -66,6 +67,11 @@ fn read_at(path: &Path) -> Result<Option<Manifest>, String> {
         return Err(format!("it is longer than {MAX_BYTES} bytes"));
     }
     let text = String::from_utf8(bytes).map_err(|_| "it is not text".to_string())?;
+    if !Manifest::is_list(&text) {
+        return Err(
+            "it is not a list mavtables wrote (its first line is not mavtables' own)".to_string(),
+        );
+    }
     Ok(Some(Manifest::parse(&text)))
 }
 
@@ -235,10 +241,9 @@ impl MadeList {
         let (text, left_out) = self.list.to_text(&self.pattern);
         let path = list_path(&self.pattern);
         let temp = self.dir.join(Manifest::temp_name(&self.pattern));
-        match write_atomically(&path, &temp, &text) {
+        match replace_file(&path, &temp, text.as_bytes(), 0o640) {
             Ok(()) => self.failing = false,
             Err(e) => {
-                let _ = fs::remove_file(&temp);
                 if !self.failing {
                     self.failing = true;
                     log::warn(&format_args!(
@@ -271,31 +276,6 @@ fn existing(pattern: &FilePattern, entry: &Created, meta: &Metadata) -> Existing
         suffix: pattern.suffix_of(&entry.name).unwrap_or(0),
         bytes: meta.len(),
     }
-}
-
-/// Writes `text` to `path` through `temp`: created afresh (a link or file left there is
-/// removed first, never followed), synced, renamed over `path`, the directory synced.
-fn write_atomically(path: &Path, temp: &Path, text: &str) -> io::Result<()> {
-    match fs::remove_file(temp) {
-        Ok(()) => {}
-        Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-        Err(e) => return Err(e),
-    }
-    let mut file = OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o640)
-        .open(temp)?;
-    file.write_all(text.as_bytes())?;
-    file.sync_all()?;
-    drop(file);
-    fs::rename(temp, path)?;
-    if let Some(dir) = path.parent()
-        && let Ok(d) = File::open(dir)
-    {
-        let _ = d.sync_all();
-    }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -366,5 +346,15 @@ mod tests {
         fs::remove_file(&path).expect("rm");
         std::os::unix::fs::symlink("/dev/zero", &path).expect("link");
         assert!(matches!(read(&p), Stored::Refused(_)));
+        // A text file of the user's at the list's name: not taken for a list, not
+        // rewritten.
+        fs::remove_file(&path).expect("rm");
+        fs::write(&path, "1 2 3 notes.tlog\n").expect("text");
+        assert!(matches!(read(&p), Stored::Refused(why) if why.contains("not a list")));
+        MadeList::open(&p).save();
+        assert_eq!(
+            fs::read_to_string(&path).expect("read"),
+            "1 2 3 notes.tlog\n"
+        );
     }
 }

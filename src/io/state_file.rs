@@ -3,16 +3,16 @@
 //! file is always whole and the event loop never waits for a slow disk. Only the latest
 //! state waits to be written; an older one not yet written is replaced.
 
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
-use std::os::unix::fs::OpenOptionsExt;
+use std::fs;
+use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
 
 use super::log;
-use crate::files::{FileError, read_regular};
-use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
+use crate::config::read_signing_state;
+use crate::files::replace_file;
+use crate::signing::state::SavedState;
 
 /// What the loop and the writer share: the text to write next, and whether to stop.
 #[derive(Default)]
@@ -29,13 +29,14 @@ pub(super) struct StateFile {
 }
 
 impl StateFile {
-    /// The state saved at `path` by an earlier run (`None` if there is none or it cannot
-    /// be read or understood: said in the log), and a writer for it. Something at `path`
-    /// that is not a regular file, or is larger than [`STATE_FILE_LIMIT`], is an error:
-    /// it is not read, and the writer would rename a file over it.
-    pub(super) fn open(path: PathBuf) -> Result<(StateFile, Option<SavedState>), FileError> {
-        let saved = match read_regular(&path, STATE_FILE_LIMIT) {
-            Ok(bytes) => match SavedState::parse(&String::from_utf8_lossy(&bytes)) {
+    /// The state saved at `path` by an earlier run (`None` if there is none, or if its
+    /// lines after the header cannot be understood: said in the log), and a writer for
+    /// it. Anything at `path` but a state file mavtables wrote is an error (see
+    /// [`read_signing_state`]), since the writer would rename a file over it; the error
+    /// reads as a predicate of the file.
+    pub(super) fn open(path: PathBuf) -> Result<(StateFile, Option<SavedState>), String> {
+        let saved = match read_signing_state(&path)? {
+            Some(bytes) => match SavedState::parse(&String::from_utf8_lossy(&bytes)) {
                 Ok(state) => Some(state),
                 Err(e) => {
                     log::warn(&format_args!(
@@ -45,15 +46,7 @@ impl StateFile {
                     None
                 }
             },
-            Err(FileError::NotFound) => None,
-            Err(FileError::Unreadable(why)) => {
-                log::warn(&format_args!(
-                    "cannot read signing state {}: {why}; starting without it",
-                    path.display()
-                ));
-                None
-            }
-            Err(e) => return Err(e),
+            None => None,
         };
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             let _ = fs::create_dir_all(dir);
@@ -140,32 +133,27 @@ fn write_loop(path: &Path, shared: &(Mutex<Pending>, Condvar)) {
 }
 
 /// Writes `text` to `path` so that the file is either the old one or the new one, even
-/// if the machine loses power: a temporary file beside it, synced, renamed over it.
+/// if the machine loses power, through a temporary file of mavtables' own name beside
+/// it ([`temp_path`]).
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    let mut f: File = OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .mode(0o600)
-        .open(&tmp)?;
-    f.write_all(text.as_bytes())?;
-    f.sync_all()?;
-    drop(f);
-    fs::rename(&tmp, path)?;
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
-        && let Ok(d) = File::open(dir)
-    {
-        let _ = d.sync_all();
-    }
-    Ok(())
+    replace_file(path, &temp_path(path), text.as_bytes(), 0o600)
+}
+
+/// Where the state for `path` is written before it is renamed over it: a hidden name of
+/// mavtables' own in the same directory (`.signing.state.mavtables.tmp`), never a name a
+/// user would give a file of theirs.
+fn temp_path(path: &Path) -> PathBuf {
+    let mut name = std::ffi::OsString::from(".");
+    name.push(path.file_name().unwrap_or_default());
+    name.push(".mavtables.tmp");
+    path.with_file_name(name)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::signing::state::{HEADER, STATE_FILE_LIMIT};
+    use std::fs::File;
 
     #[test]
     fn saved_state_is_read_back_and_damage_is_not_fatal() {
@@ -181,27 +169,71 @@ mod tests {
         file.save(&state);
         file.finish(Some(&state));
         let (file, saved) = StateFile::open(path.clone()).expect("open");
-        assert_eq!(saved, Some(state));
+        assert_eq!(saved, Some(state.clone()));
         file.finish(None);
-        fs::write(&path, "garbage").expect("write");
+        // Its own file, damaged after the header: started without, and replaced.
+        fs::write(&path, format!("{HEADER}\ngarbage\n")).expect("write");
         let (file, saved) = StateFile::open(path.clone()).expect("open");
         assert_eq!(saved, None);
-        file.finish(None);
+        file.finish(Some(&state));
+        assert_eq!(
+            SavedState::parse(&fs::read_to_string(&path).expect("read")),
+            Ok(state.clone())
+        );
+        // Somebody else's file: refused, and left as it was.
+        fs::write(&path, "my notes\n").expect("write");
+        let refused = StateFile::open(path.clone()).err().expect("refused");
+        assert!(
+            refused.contains("does not hold a mavtables signing state"),
+            "{refused}"
+        );
+        assert_eq!(fs::read_to_string(&path).expect("read"), "my notes\n");
         // Not a regular file, or too large: refused, not read.
         fs::remove_file(&path).expect("remove");
         std::os::unix::fs::symlink("/dev/zero", &path).expect("symlink");
-        assert!(matches!(
-            StateFile::open(path.clone()),
-            Err(FileError::NotRegular(_))
-        ));
+        let refused = StateFile::open(path.clone()).err().expect("refused");
+        assert!(refused.contains("not a regular file"), "{refused}");
         fs::remove_file(&path).expect("remove");
         File::create(&path)
             .and_then(|f| f.set_len(STATE_FILE_LIMIT + 1))
             .expect("sparse file");
-        assert!(matches!(
-            StateFile::open(path.clone()),
-            Err(FileError::TooLarge { .. })
-        ));
+        let refused = StateFile::open(path.clone()).err().expect("refused");
+        assert!(refused.contains("larger than the limit"), "{refused}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_state_is_written_through_a_name_of_mavtables_own_and_links_are_not_followed() {
+        let dir = std::env::temp_dir().join(format!("mavtables-state-tmp-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("notes");
+        // The user's own `notes.tmp`, and a link at the temporary name to a file of theirs.
+        fs::write(dir.join("notes.tmp"), "mine").expect("write");
+        fs::write(dir.join("victim"), "victim data").expect("write");
+        let temp = temp_path(&path);
+        assert_eq!(temp, dir.join(".notes.mavtables.tmp"));
+        std::os::unix::fs::symlink(dir.join("victim"), &temp).expect("symlink");
+        let state = SavedState {
+            clean: true,
+            clock: 7,
+            streams: Vec::new(),
+        };
+        write_atomically(&path, &state.to_text()).expect("write");
+        assert_eq!(
+            SavedState::parse(&fs::read_to_string(&path).expect("read")),
+            Ok(state)
+        );
+        assert!(fs::symlink_metadata(&path).expect("meta").is_file());
+        assert_eq!(
+            fs::read_to_string(dir.join("notes.tmp")).expect("read"),
+            "mine"
+        );
+        assert_eq!(
+            fs::read_to_string(dir.join("victim")).expect("read"),
+            "victim data"
+        );
+        assert!(!temp.exists() && fs::symlink_metadata(&temp).is_err());
         let _ = fs::remove_dir_all(&dir);
     }
 }

@@ -28,6 +28,8 @@ pub(crate) const MAX_BYTES: usize = 1 << 20;
 const EXTENSION: &str = ".mavtables";
 /// What the temporary file's name adds to the list's.
 const TEMP: &str = ".tmp";
+/// How a list file begins: a list whose first line does not is not one mavtables wrote.
+const HEADER_START: &str = "# mavtables: ";
 
 /// A file's identity on the machine: the device it is on, its inode there and when it
 /// was born.
@@ -135,6 +137,11 @@ impl Manifest {
         1 + pattern.name_pattern().len() + EXTENSION.len() + TEMP.len()
     }
 
+    /// Whether `text` begins as a list mavtables wrote (its first line).
+    pub fn is_list(text: &str) -> bool {
+        text.starts_with(HEADER_START)
+    }
+
     /// The list a file holds; comments, blank lines and lines that do not read as
     /// `DEVICE INODE BIRTH NAME` are skipped.
     pub fn parse(text: &str) -> Manifest {
@@ -152,7 +159,7 @@ impl Manifest {
     /// left out; how many is the second value.
     pub fn to_text(&self, pattern: &FilePattern) -> (String, usize) {
         let header = format!(
-            "# mavtables: the recordings it created from the pattern {}, the only files it may remove (device inode birth name)\n",
+            "{HEADER_START}the recordings it created from the pattern {}, the only files it may remove (device inode birth name)\n",
             pattern.name_pattern()
         );
         let lines: Vec<String> = self

@@ -23,6 +23,14 @@ use super::streams::MAX_STREAMS;
 /// The first line of a state file.
 pub const HEADER: &str = "mavtables signing state 1";
 
+/// Whether `bytes` begin as a state file mavtables wrote: with [`HEADER`] as their
+/// first line. Only such a file may be replaced by a new one.
+pub fn is_state_file(bytes: &[u8]) -> bool {
+    bytes
+        .strip_prefix(HEADER.as_bytes())
+        .is_some_and(|rest| rest.is_empty() || rest.starts_with(b"\n") || rest.starts_with(b"\r\n"))
+}
+
 /// The longest line a state file can have: a stream with the widest numbers,
 /// `stream 0123456789abcdef 255 255 255 18446744073709551615` and its line ending.
 const MAX_LINE: usize = "stream ".len() + 16 + 3 * " 255".len() + 1 + 20 + 1;

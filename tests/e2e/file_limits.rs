@@ -226,7 +226,7 @@ fn a_key_file_must_be_a_regular_file_of_at_most_4_kib() {
 }
 
 #[test]
-fn the_signing_state_must_be_a_regular_file_of_at_most_1_mib() {
+fn the_signing_state_must_be_a_state_file_mavtables_wrote_of_at_most_1_mib() {
     let scratch = Scratch::new("limits-state");
     let dir = &scratch.dir;
     let key = dir.join("k.key");
@@ -239,12 +239,19 @@ fn the_signing_state_must_be_a_regular_file_of_at_most_1_mib() {
     mkfifo(&fifo, 0o600);
     let huge = dir.join("huge.state");
     sparse(&huge, (1 << 20) + 1, 0o600);
-    let note = "note: mavtables reads this file at start and saves the state by renaming a new file over it: name a regular file, or a path where none exists yet\n";
+    // A file of the user's that is not a state: renaming a new file over it would lose it.
+    let text = dir.join("text.state");
+    std::fs::write(&text, "my notes\n").expect("write");
+    let note = "note: mavtables reads this file at start and saves the state by renaming a new file over it: name a file it wrote, or a path where none exists yet\n";
     for (state, what) in [
         (&zero, "is a character device, not a regular file"),
         (&fifo, "is a FIFO, not a regular file"),
         (&huge, "is larger than the limit of 1 MiB"),
         (dir, "is a directory, not a regular file"),
+        (
+            &text,
+            "does not hold a mavtables signing state (its first line is not \"mavtables signing state 1\")",
+        ),
     ] {
         let state = s(state);
         let (conf, _) = keyed_config(dir, &key, Some(&state));
@@ -279,10 +286,12 @@ fn the_signing_state_must_be_a_regular_file_of_at_most_1_mib() {
     let (conf, _) = keyed_config(dir, &key, Some(&s(&dir.join("new.state"))));
     let ran = run_bounded(dir, &["--check", "--config", &conf], &[]);
     assert_eq!(ran.code, Some(0), "{ran:?}");
-    // So is a regular file that does not hold a state: a warning when the router starts.
-    let text = dir.join("text.state");
-    std::fs::write(&text, "not a state\n").expect("write");
-    let (conf, _) = keyed_config(dir, &key, Some(&s(&text)));
+    // So is a state file of mavtables' own whose lines after the first are damaged: a
+    // warning when the router starts, which then replaces it.
+    let damaged = dir.join("damaged.state");
+    std::fs::write(&damaged, "mavtables signing state 1\nclock x\n").expect("write");
+    let (conf, _) = keyed_config(dir, &key, Some(&s(&damaged)));
     let ran = run_bounded(dir, &["--check", "--config", &conf], &[]);
     assert_eq!(ran.code, Some(0), "{ran:?}");
+    assert_eq!(std::fs::read_to_string(&text).expect("read"), "my notes\n");
 }
