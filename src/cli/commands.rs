@@ -11,6 +11,7 @@ use crate::commands::inspect::{self, Failure, Options};
 use crate::commands::replay::{self, ProgressBar, ReplayError, Speed, Target};
 use crate::config::suggest::did_you_mean;
 use crate::dialect::{Dialect, Loader};
+use crate::files::{FileError, RegularFile};
 use std::path::Path;
 
 const INSPECT_USAGE: &str = "\
@@ -46,7 +47,8 @@ usage: mavtables replay FILE --to udp:HOST:PORT|serial:DEVICE:BAUD [--speed X|ma
                         [--dialect FILE]...
   Sends a capture's valid frames at their recorded timing (divided by X; default 1),
   or as fast as possible with --speed max. Raw streams have no timing: they are sent
-  as fast as the link takes them. FILE '-' is standard input, sent as it arrives.
+  as fast as the link takes them. FILE '-' is standard input, sent as it arrives;
+  any other FILE must be a regular file.
   --dialect FILE    also know the messages of this MAVLink XML file (repeatable);
                     frames of messages no dialect knows are not sent
 ";
@@ -95,15 +97,20 @@ fn message_ids(list: &str, dialect: &Dialect) -> Result<Vec<u32>, String> {
         .collect()
 }
 
-/// Opens a capture: standard input for `-`, else the file. Also says whether it is a
-/// regular file (which can be read twice).
+/// Opens a capture: standard input for `-`, else the file, which must be a regular file
+/// (a device is not opened, a FIFO not waited on: a stream comes in on standard input).
+/// Also says whether it is a regular file (which can be read twice).
 fn open_capture(file: &str) -> Result<(Box<dyn Read>, bool), String> {
     if file == "-" {
         return Ok((Box::new(std::io::stdin().lock()), false));
     }
-    let f = std::fs::File::open(file).map_err(|e| format!("cannot read {file}: {e}"))?;
-    let regular = f.metadata().is_ok_and(|m| m.is_file());
-    Ok((Box::new(f), regular))
+    match RegularFile::open(Path::new(file)) {
+        Ok(f) => Ok((Box::new(f.into_file()), true)),
+        Err(e @ FileError::NotRegular(_)) => Err(format!(
+            "cannot read {file}: it {e} (to read a stream, give - and send it to standard input)"
+        )),
+        Err(e) => Err(format!("cannot read {file}: it {e}")),
+    }
 }
 
 fn subnet(text: &str) -> Result<Subnet, String> {

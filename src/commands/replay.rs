@@ -93,6 +93,18 @@ impl Speed {
     }
 }
 
+/// The longest a replay waits for a frame, however far apart its capture's timestamps
+/// are or however slow `--speed` makes it (about 100 years: forever, in practice).
+const LONGEST_WAIT: Duration = Duration::from_secs(100 * 365 * 86_400);
+
+/// How long after the first frame a frame recorded `gap_us` µs after it is sent at
+/// speed `factor`: never more than [`LONGEST_WAIT`], whatever a capture's timestamps say
+/// (so the send time can always be counted).
+fn wait_for(gap_us: u64, factor: f64) -> Duration {
+    Duration::try_from_secs_f64(gap_us as f64 / 1e6 / factor)
+        .map_or(LONGEST_WAIT, |wait| wait.min(LONGEST_WAIT))
+}
+
 /// One frame to send and when it was recorded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Timed<'a> {
@@ -283,8 +295,7 @@ pub(crate) fn replay(
             for_each_frame(input, dialect, |f| {
                 if let (Speed::Factor(k), Some(t)) = (speed, f.timestamp_us) {
                     let t0 = *first.get_or_insert(t);
-                    let due =
-                        start + Duration::from_secs_f64(t.saturating_sub(t0) as f64 / 1e6 / k);
+                    let due = start + wait_for(t.saturating_sub(t0), k);
                     let now = Instant::now();
                     if due > now {
                         std::thread::sleep(due - now);
@@ -382,6 +393,22 @@ impl<W: Write> ProgressBar<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_waits_its_gap_over_the_speed_and_never_more_than_the_longest_wait() {
+        assert_eq!(wait_for(2_000_000, 2.0), Duration::from_secs(1));
+        assert_eq!(wait_for(0, 1e-300), Duration::ZERO);
+        // Speeds and gaps no clock can count wait the longest, without a panic.
+        for (gap, speed) in [
+            (1, 1e-300),
+            (u64::MAX, 1.0),
+            (u64::MAX, 1e-10),
+            (1_000, f64::MIN_POSITIVE),
+        ] {
+            assert_eq!(wait_for(gap, speed), LONGEST_WAIT, "{gap} {speed}");
+            let _due = Instant::now() + wait_for(gap, speed);
+        }
+    }
 
     #[test]
     fn targets_and_speeds_parse() {

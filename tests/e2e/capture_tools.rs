@@ -56,6 +56,39 @@ fn verdicts(dir: &str, rows: &[(String, bool)], extra: &[&str]) -> Vec<(String, 
     got
 }
 
+/// A capture given by name is read only if it is a regular file: a FIFO is not waited
+/// on and a device not opened (`/dev/zero` would be read forever); a stream comes in on
+/// standard input (`-`). Each run is bounded: a regression hangs no longer than 10 s.
+#[test]
+fn inspect_and_replay_read_only_regular_files_by_name() {
+    let scratch = Scratch::new("capture-special");
+    let fifo = scratch.dir.join("capture.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success(), "mkfifo {}", fifo.display());
+    let fifo = fifo.display().to_string();
+    for (path, what) in [
+        (fifo.as_str(), "is a FIFO, not a regular file"),
+        ("/dev/zero", "is a character device, not a regular file"),
+    ] {
+        for args in [
+            vec!["inspect", path],
+            vec!["replay", path, "--to", "udp:127.0.0.1:9"],
+        ] {
+            let mut cmd = Command::new(BIN);
+            cmd.args(&args);
+            let mut run = common::process::Proc::spawn(cmd, "mavtables");
+            let lines = run.finish(Duration::from_secs(10));
+            assert_eq!(
+                lines,
+                [format!(
+                    "error: cannot read {path}: it {what} (to read a stream, give - and send it to standard input)"
+                )],
+                "{args:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn seed_vectors_without_crc_pass_or_fail_as_named() {
     let rows = manifest("seed_scaled_pressure", Verdict::Named);

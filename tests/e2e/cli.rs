@@ -360,7 +360,7 @@ fn subcommands_read_options_like_the_main_command() {
         // A unique prefix and `=` work as for the main command.
         (
             &["replay", "missing.cap", "--sp=2", "--t", "udp:127.0.0.1:9"],
-            "cannot read missing.cap: No such file or directory (os error 2)",
+            "cannot read missing.cap: it does not exist",
         ),
     ];
     for (args, want) in cases {
