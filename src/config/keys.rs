@@ -3,7 +3,7 @@
 //! the statement's path, like any other mistake in the file. The signing state file is
 //! checked at the same time: see [`check_signing_state`].
 
-use super::ast::{Item, SerialSetting, SocketSetting};
+use super::ast::{Item, SerialSetting, SocketSetting, ZenohSetting};
 use super::{Config, Diagnostic, Span, parse};
 use crate::files::{FileError, read_regular};
 use crate::signing::SigningKey;
@@ -71,6 +71,10 @@ fn key_spans(src: &str) -> Vec<Option<Span>> {
             }
             Item::Serial { settings, .. } => Some(settings.iter().rev().find_map(|s| match s {
                 SerialSetting::SigningKey(path) => Some(*path),
+                _ => None,
+            })),
+            Item::Zenoh { settings, .. } => Some(settings.iter().rev().find_map(|s| match s {
+                ZenohSetting::SigningKey(path) => Some(*path),
                 _ => None,
             })),
             _ => None,

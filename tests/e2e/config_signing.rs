@@ -492,3 +492,32 @@ fn the_binary_never_prints_a_key() {
     assert_eq!(out.status.code(), Some(1));
     assert_no_secret(&out);
 }
+
+/// A `zenoh` block is an interface like the others: a key error after it (or in it) is
+/// located at its own `signing_key` statement, not at the file's start.
+#[cfg(feature = "zenoh")]
+#[test]
+fn key_errors_after_a_zenoh_block_are_located_at_their_statement() {
+    let dir = scratch("zenoh-located");
+    let good = key_file(&dir, "good.key", PASSPHRASE, 0o600);
+    let open = key_file(&dir, "open.key", PASSPHRASE, 0o644);
+    for (zenoh_key, udp_key, line, col, bad) in [
+        (&good, &open, 2, "udp { signing_key ".len() + 1, &open),
+        (
+            &open,
+            &good,
+            1,
+            "zenoh { mode peer; listen tcp/127.0.0.1:7447; prefix p; signing_key ".len() + 1,
+            &open,
+        ),
+    ] {
+        let src = format!(
+            "zenoh {{ mode peer; listen tcp/127.0.0.1:7447; prefix p; signing_key {zenoh_key}; }}\nudp {{ signing_key {udp_key}; }}\n"
+        );
+        let e = read_keys(&src).expect_err("refused");
+        assert!(
+            e.starts_with(&format!("f:{line}:{col}: key file {bad} can be read or written")),
+            "{e}"
+        );
+    }
+}
