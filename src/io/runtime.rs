@@ -832,8 +832,13 @@ fn start_stats(config: &Config) -> io::Result<Option<StatsServer>> {
 }
 
 /// Opens the signing state file (when some interface has a key) and gives the core what
-/// it saved; an error when something other than a state file is at its path.
-fn open_state_file(config: &Config, engine: &mut Engine) -> io::Result<Option<StateFile>> {
+/// it saved, telling it the wall clock as read at `now`; an error when something other
+/// than a state file is at its path.
+fn open_state_file(
+    config: &Config,
+    engine: &mut Engine,
+    now: Timestamp,
+) -> io::Result<Option<StateFile>> {
     if !engine.has_signing_keys() {
         return Ok(None);
     }
@@ -842,7 +847,7 @@ fn open_state_file(config: &Config, engine: &mut Engine) -> io::Result<Option<St
     };
     let (file, saved) = StateFile::open(path.clone())
         .map_err(|e| io::Error::other(format!("signing state file {} {e}", path.display())))?;
-    engine.set_wall_clock(Timestamp::ZERO, wall_clock());
+    engine.set_wall_clock(now, wall_clock());
     if let Some(state) = saved {
         engine.restore_signing_state(&state);
     }
@@ -877,8 +882,12 @@ fn start(
     if config.interfaces.is_empty() {
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
-    let state_file = open_state_file(config, &mut engine)?;
+    let state_file = open_state_file(config, &mut engine, Timestamp::ZERO)?;
     let recorder = start_recording(config, &mut engine);
+    if config.record.is_some() && recorder.is_none() {
+        // Said by the recorder; a reload tries again.
+        engine.record_not_started();
+    }
     let flight_log = start_flight_log(config);
     let stats = start_stats(config)?;
     let notifier = Notifier::from_env();

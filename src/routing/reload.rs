@@ -220,6 +220,8 @@ pub(crate) struct RulePlan {
     /// Rules of the new configuration that the old one did not have (by text, in the
     /// same chain).
     pub changed: usize,
+    /// Rules of the old configuration the new one does not have.
+    pub removed: usize,
     /// For each rule of the new configuration (by flat number: chains in order, their
     /// rules in order), the flat number of the same rule in the old one, whose counts
     /// it continues.
@@ -250,6 +252,7 @@ pub(crate) fn plan_rules(old: &Config, new: &Config) -> RulePlan {
         unchanged,
         total: carried.len(),
         changed: carried.iter().filter(|c| c.is_none()).count(),
+        removed: old_rules.values().map(Vec::len).sum(),
         carried,
         default_carried: old.default_action == new.default_action,
     }

@@ -516,7 +516,9 @@ fn key_errors_after_a_zenoh_block_are_located_at_their_statement() {
         );
         let e = read_keys(&src).expect_err("refused");
         assert!(
-            e.starts_with(&format!("f:{line}:{col}: key file {bad} can be read or written")),
+            e.starts_with(&format!(
+                "f:{line}:{col}: key file {bad} can be read or written"
+            )),
             "{e}"
         );
     }

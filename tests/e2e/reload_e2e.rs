@@ -16,6 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use crate::signing;
 use common::eventually;
 use common::net::{
     SECOND, attitude, connect, free_tcp_port, heartbeat, number_of, numbered, udp_frames,
@@ -216,7 +217,7 @@ fn fifty_reloads_under_load_lose_nothing() {
         let rules = if i % 2 == 0 { OTHER_RULES } else { TWO_RULES };
         let line = reload(&mut router, &format!("{interfaces}{rules}"));
         assert!(
-            line.ends_with("2 rules (1 changed), +0 interfaces, -0, 0 changed"),
+            line.ends_with("2 rules (1 changed, 1 removed), +0 interfaces, -0, 0 changed"),
             "{line}"
         );
     }
@@ -276,7 +277,7 @@ fn a_rule_added_by_reload_applies_to_the_next_packet() {
     assert_eq!(udp_frames(&b, 1, 5 * SECOND), [heartbeat(1)]);
 
     let line = reload(&mut router, &format!("{udp}{accept}"));
-    assert!(line.contains("1 rule (0 changed)"), "{line}");
+    assert!(line.contains("1 rule (0 changed, 1 removed)"), "{line}");
     a.send(&attitude(1, 3)).expect("send");
     assert_eq!(udp_frames(&b, 1, 5 * SECOND), [attitude(1, 3)]);
     router.stop();
@@ -645,5 +646,115 @@ fn the_stats_endpoint_is_kept_or_moved_by_a_reload() {
     eventually("the old port closed", 5 * SECOND, || {
         TcpStream::connect(("127.0.0.1", http_a)).is_err()
     });
+    router.stop();
+}
+
+/// Whether process `pid` is stopped (`T` in `/proc/PID/stat`).
+fn stopped(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| rest.starts_with('T')))
+        .unwrap_or(false)
+}
+
+/// A reload that gives the router its first signing key tells its signing clock the
+/// wall time as it is then, not as it was at start: a frame signed in the reload's own
+/// turn carries the wall time, not the wall time plus the router's uptime (a clock run
+/// ahead stays ahead, in every later timestamp and in the saved state). The router is
+/// stopped while a frame and the SIGHUP wait for it, so that it reads both in one turn.
+#[test]
+fn a_first_signing_key_added_by_reload_signs_with_the_wall_clock() {
+    let s = Scratch::new("reload-first-key");
+    let port = free_udp_port();
+    let unsigned = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
+    let mut router = Router::start(&s, &unsigned, 1);
+    let a = udp_peer(&mut router, port, 1);
+    let b = udp_peer(&mut router, port, 2);
+    // Uptime for a clock told the wall time "at start" to be off by.
+    thread::sleep(Duration::from_millis(1500));
+    let key = signing::key_file(&s, "k.key", "a passphrase of the fleet\n");
+    let state = s.dir.join("signing.state").display().to_string();
+    let signed = format!(
+        "signing_state {state};\nudp {{ port {port}; address 127.0.0.1; signing_key {key}; allow_unsigned yes; }}\ndefault_action accept;\n"
+    );
+    std::fs::write(&router.config, &signed).expect("write config");
+    let pid = router.pid();
+    router.signal(libc::SIGSTOP);
+    eventually("the router stopped", 5 * SECOND, || stopped(pid));
+    a.send(&attitude(1, 7)).expect("send");
+    router.signal(libc::SIGHUP);
+    router.signal(libc::SIGCONT);
+    let line = router.err.wait_for(RELOADED, 10 * SECOND);
+    assert!(line.contains("+0 interfaces, -0, 1 changed"), "{line}");
+    let frames = udp_frames(&b, 1, 10 * SECOND);
+    let frame = frames.first().expect("the frame, signed");
+    assert_eq!(frame[2] & 1, 1, "signed: {frame:?}");
+    let at = frame.len() - 12;
+    let mut ts = [0u8; 8];
+    ts[..6].copy_from_slice(&frame[at..at + 6]);
+    let ts = u64::from_le_bytes(ts);
+    let wall = signing::now_ts();
+    // 10 µs units: within a quarter of a second of the wall clock.
+    assert!(
+        ts <= wall + 25_000 && ts + 25_000 >= wall,
+        "signed at {ts}, wall clock {wall}: {} ms apart",
+        (ts as i64 - wall as i64) / 100
+    );
+    router.stop();
+}
+
+/// What a reload cannot open (a port taken) is said as not opened, not as added, and
+/// the next reload of the same file opens it; a statistics endpoint that cannot listen
+/// is not said to be restarted, and the next reload starts it. The summary counts
+/// removed rules and names other settings that changed.
+#[test]
+fn what_a_reload_cannot_open_is_said_and_the_next_reload_opens_it() {
+    let s = Scratch::new("reload-not-opened");
+    let (port, t_port, http) = (free_udp_port(), free_tcp_port(), free_tcp_port());
+    let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\n");
+    let mut router = Router::start(&s, &format!("{udp}{TWO_RULES}"), 1);
+    let a = udp_peer(&mut router, port, 1);
+    let name = a.local_addr().expect("addr").to_string();
+    let taken_t = std::net::TcpListener::bind(("127.0.0.1", t_port)).expect("take the port");
+    let taken_http = std::net::TcpListener::bind(("127.0.0.1", http)).expect("take the port");
+    let more = format!(
+        "{udp}tcp {{ port {t_port}; address 127.0.0.1; }}\nstats {{ port {http}; address 127.0.0.1; }}\ndedup 200ms;\nchain default {{\n    accept;\n}}\n"
+    );
+    let line = reload(&mut router, &more);
+    assert!(
+        line.ends_with("1 rule (0 changed, 1 removed), +0 interfaces, -0, 0 changed, 1 not opened, dedup changed"),
+        "{line}"
+    );
+    let seen = router.err.seen.clone();
+    let has = |text: &str| seen.iter().any(|l| l.contains(text));
+    assert!(
+        has(&format!("reload: tcp 127.0.0.1:{t_port} not opened: ")),
+        "{seen:?}"
+    );
+    assert!(!has(&format!("tcp 127.0.0.1:{t_port} added")), "{seen:?}");
+    assert!(
+        has(&format!("stats: cannot listen on 127.0.0.1:{http}")),
+        "{seen:?}"
+    );
+    assert!(!has("statistics endpoint restarted"), "{seen:?}");
+
+    drop((taken_t, taken_http));
+    let line = reload(&mut router, &more);
+    assert!(
+        line.ends_with("1 rule (0 changed), +1 interface, -0, 0 changed"),
+        "{line}"
+    );
+    assert!(
+        router
+            .err
+            .seen
+            .iter()
+            .any(|l| l.contains("statistics endpoint restarted"))
+    );
+    let mut conn = connect(&format!("127.0.0.1:{t_port}"));
+    conn.write_all(&heartbeat(3)).expect("write");
+    router.wait_for("new component 3.1 on tcp:127.0.0.1:");
+    a.send(&attitude(1, 1)).expect("send");
+    assert!(frames_in_at_least(http, &name, 2) >= 2);
     router.stop();
 }

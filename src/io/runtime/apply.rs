@@ -102,17 +102,18 @@ impl Runtime {
             log::warn(w);
         }
         let config = &file.config;
-        let done = self.engine.configure(config, &file.keys, now);
-        for request in &done.requests {
+        let mut done = self.engine.configure(config, &file.keys, now);
+        for request in std::mem::take(&mut done.requests) {
             match request {
-                Request::Close(id) => self.remove(*id),
-                Request::Open(id, iface) => match driver_for(iface, *id, &self.waker) {
+                Request::Close(id) => self.remove(id),
+                Request::Open(id, iface) => match driver_for(&iface, id, &self.waker) {
                     Ok(driver) => self.add(driver, false),
                     Err(e) => {
                         log::error(&format_args!(
                             "reload: cannot open {e}; it stays closed until a reload opens it"
                         ));
-                        self.engine.unconfigure(*id);
+                        self.engine.unconfigure(id);
+                        done.open_failed(id, "the error above; the next reload tries again");
                     }
                 },
             }
@@ -124,7 +125,7 @@ impl Runtime {
             if let Some(file) = self.state_file.take() {
                 file.finish(self.engine.signing_state(true).as_ref());
             }
-            match open_state_file(config, &mut self.engine) {
+            match open_state_file(config, &mut self.engine, now) {
                 Ok(file) => {
                     self.state_file = file;
                     log::stderr_text("reload: signing state file reopened\n");
@@ -155,16 +156,27 @@ impl Runtime {
             }
             self.engine.stop_recording();
             self.recorder = start_recording(config, &mut self.engine);
-            log::stderr_text("reload: recording restarted\n");
+            match (&config.record, &self.recorder) {
+                (None, _) => log::stderr_text("reload: recording stopped\n"),
+                (Some(_), Some(_)) => log::stderr_text("reload: recording restarted\n"),
+                // Said by the recorder; the next reload tries again.
+                (Some(_), None) => self.engine.record_not_started(),
+            }
         }
         if done.stats_changed {
             // The old endpoint lets its port go before the new one takes it.
             self.stats = None;
-            self.stats = start_stats(config).unwrap_or_else(|e| {
-                log::error(&e);
-                None
-            });
-            log::stderr_text("reload: statistics endpoint restarted\n");
+            match start_stats(config) {
+                Ok(None) => log::stderr_text("reload: statistics endpoint stopped\n"),
+                Ok(Some(server)) => {
+                    self.stats = Some(server);
+                    log::stderr_text("reload: statistics endpoint restarted\n");
+                }
+                Err(e) => {
+                    log::error(&format_args!("reload: {e}; the next reload tries again"));
+                    self.engine.stats_not_started();
+                }
+            }
         }
         self.handle_notices(now);
         log::stderr_text(&format!("configuration reloaded: {done}\n"));

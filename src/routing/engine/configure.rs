@@ -52,6 +52,8 @@ pub struct Reconfigured {
     pub rules: usize,
     /// Rules the old configuration did not have (by text, in the same chain).
     pub rules_changed: usize,
+    /// Rules of the old configuration the new one does not have.
+    pub rules_removed: usize,
     /// The default action changed.
     pub default_changed: bool,
     /// Interfaces added, removed, and changed (in place or reopened).
@@ -60,6 +62,14 @@ pub struct Reconfigured {
     pub removed: usize,
     /// Interfaces changed in place or reopened.
     pub changed: usize,
+    /// Interfaces to be opened whose driver could not be made (see
+    /// [`Reconfigured::open_failed`]).
+    pub not_opened: usize,
+    /// Other settings that changed: `queue`, `dedup`, `group`, `heartbeat` (by name).
+    pub settings_changed: Vec<&'static str>,
+    /// The interfaces to be opened: each with its label, its detail line (index into
+    /// `details`) and whether it is new (else reopened).
+    opening: Vec<Opening>,
     /// Frames that were queued for links of closed interfaces (dropped and counted here,
     /// not sent).
     pub dropped: u64,
@@ -83,25 +93,67 @@ impl fmt::Display for Reconfigured {
         let s = |n: usize| if n == 1 { "" } else { "s" };
         write!(
             f,
-            "{} rule{} ({} changed), +{} interface{}, -{}, {} changed",
+            "{} rule{} ({} changed",
             self.rules,
             s(self.rules),
-            self.rules_changed,
+            self.rules_changed
+        )?;
+        if self.rules_removed > 0 {
+            write!(f, ", {} removed", self.rules_removed)?;
+        }
+        write!(
+            f,
+            "), +{} interface{}, -{}, {} changed",
             self.added,
             s(self.added),
             self.removed,
             self.changed
         )?;
+        if self.not_opened > 0 {
+            write!(f, ", {} not opened", self.not_opened)?;
+        }
         if self.default_changed {
             write!(f, ", default_action changed")?;
         }
         if self.dialect_changed {
             write!(f, ", dialect changed")?;
         }
+        for name in &self.settings_changed {
+            write!(f, ", {name} changed")?;
+        }
         if self.dropped > 0 {
             write!(f, ", {} queued frames dropped", self.dropped)?;
         }
         Ok(())
+    }
+}
+
+/// An interface [`Engine::configure`] asks the loop to open, as [`Reconfigured`] keeps it.
+#[derive(Debug, Clone)]
+struct Opening {
+    id: InterfaceId,
+    label: String,
+    line: usize,
+    added: bool,
+}
+
+impl Reconfigured {
+    /// Notes that the driver of interface `id`, which [`Request::Open`] asked for, could
+    /// not be made (`why`): it is no longer counted as added or changed, and its detail
+    /// line says so.
+    pub fn open_failed(&mut self, id: InterfaceId, why: &str) {
+        let Some(opening) = self.opening.iter().find(|o| o.id == id) else {
+            return;
+        };
+        if opening.added {
+            self.added = self.added.saturating_sub(1);
+        } else {
+            self.changed = self.changed.saturating_sub(1);
+        }
+        self.not_opened += 1;
+        if let Some(detail) = self.details.get_mut(opening.line) {
+            *detail = format!("{} not opened: {why}", opening.label);
+        }
     }
 }
 
@@ -146,11 +198,21 @@ impl Engine {
             dialect_changed: parsing_changed,
             rules: rules.total,
             rules_changed: rules.changed,
+            rules_removed: rules.removed,
             default_changed: !rules.default_carried,
             record_changed: self.config.record != config.record,
             stats_changed: self.config.stats != config.stats,
             signing_state_changed: self.config.signing_state_path(|_| None)
                 != config.signing_state_path(|_| None),
+            settings_changed: [
+                ("queue", self.config.queue != config.queue),
+                ("dedup", self.config.dedup != config.dedup),
+                ("group", self.config.groups != config.groups),
+                ("heartbeat", self.config.heartbeat != config.heartbeat),
+            ]
+            .into_iter()
+            .filter_map(|(name, changed)| changed.then_some(name))
+            .collect(),
             ..Reconfigured::default()
         };
         // A changed dialect may give a message name another id: the filter is rebuilt.
@@ -177,6 +239,8 @@ impl Engine {
             done.removed += 1;
         }
         let mut to_open = plan.added.clone();
+        // Reopened interfaces by their block's number, with their detail line.
+        let mut reopened: Vec<(usize, usize, String)> = Vec::new();
         for m in &plan.matched {
             let id = self.configured[m.old].id;
             match &m.fate {
@@ -194,6 +258,7 @@ impl Engine {
                 Fate::Reopened => {
                     let label = self.describe(id);
                     let dropped = self.forget_interface(id, &mut done.requests);
+                    reopened.push((m.new, done.details.len(), label.clone()));
                     done.details.push(format!(
                         "{label} reopened: a setting of its socket or device changed{}",
                         dropped_text(dropped)
@@ -211,8 +276,22 @@ impl Engine {
             let iface = &config.interfaces[n];
             let id = self.add_configured(iface, key_of(n), n, now);
             if plan.added.contains(&n) {
-                done.details.push(format!("{} added", self.describe(id)));
+                let label = self.describe(id);
+                done.opening.push(Opening {
+                    id,
+                    line: done.details.len(),
+                    label: label.clone(),
+                    added: true,
+                });
+                done.details.push(format!("{label} added"));
                 done.added += 1;
+            } else if let Some((_, line, label)) = reopened.iter().find(|(of, ..)| *of == n) {
+                done.opening.push(Opening {
+                    id,
+                    line: *line,
+                    label: label.clone(),
+                    added: false,
+                });
             }
             done.requests.push(Request::Open(id, iface.clone()));
             ids[n] = Some(id);
@@ -279,6 +358,18 @@ impl Engine {
         if n < self.config.interfaces.len() {
             self.config.interfaces.remove(n);
         }
+    }
+
+    /// Notes that the statistics endpoint of the configuration in force could not be
+    /// started: none is published to, and the next reload that names one starts it.
+    pub fn stats_not_started(&mut self) {
+        self.config.stats = None;
+    }
+
+    /// Notes that the recording of the configuration in force could not be started:
+    /// the next reload that names one starts it.
+    pub fn record_not_started(&mut self) {
+        self.config.record = None;
     }
 
     /// The configuration in force (its interfaces are those the core runs).
@@ -545,7 +636,7 @@ mod tests {
         assert_eq!(done.dropped, 1, "the heartbeat queued for peer 1");
         assert_eq!(
             done.to_string(),
-            "2 rules (1 changed), +0 interfaces, -1, 1 changed, 1 queued frames dropped"
+            "2 rules (1 changed, 1 removed), +0 interfaces, -1, 1 changed, 1 queued frames dropped"
         );
         // `b` kept its link, its learned address and its queue; it is paced now.
         let link = e.router().links().next().expect("peer 2's link");
