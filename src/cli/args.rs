@@ -90,7 +90,7 @@ fn loglevel(text: &str) -> Result<u8, String> {
     match text.parse::<u8>() {
         Ok(n) if n <= 3 => Ok(n),
         _ => Err(format!(
-            "{invalid}: the log level is a number from 0 (nothing) to 3 (every packet)"
+            "{invalid}: the log level is a number from 0 (nothing) to 3 (every packet and decision)"
         )),
     }
 }
@@ -153,7 +153,9 @@ mod tests {
         for out_of_range in ["4", "99", "-1", "300", "99999999999999999999"] {
             let e = p(&["--loglevel", out_of_range]).unwrap_err();
             assert!(
-                e.ends_with("the log level is a number from 0 (nothing) to 3 (every packet)"),
+                e.ends_with(
+                    "the log level is a number from 0 (nothing) to 3 (every packet and decision)"
+                ),
                 "{out_of_range}: {e}"
             );
             assert!(e.contains(&format!("('{out_of_range}')")), "{e}");

@@ -3,10 +3,14 @@
 /// The `--help` text: the original's option list (the first line names the program as it
 /// was invoked), then the endpoints, the subcommands and how to get their own help.
 pub fn help(argv0: &str) -> String {
+    let usages: Vec<String> = (super::endpoints::KINDS.iter())
+        .map(|(kind, form, _)| format!("{kind}:{form}"))
+        .collect();
+    // The examples line up two spaces after the longest form.
+    let width = usages.iter().map(String::len).max().unwrap_or(0) + 2;
     let mut endpoints = String::new();
-    for (kind, form, example) in super::endpoints::KINDS {
-        let usage = format!("{kind}:{form}");
-        endpoints += &format!("  {usage:<26}e.g. {kind}:{example}\n");
+    for (usage, (kind, _, example)) in usages.iter().zip(super::endpoints::KINDS) {
+        endpoints += &format!("  {usage:<width$}e.g. {kind}:{example}\n");
     }
     format!(
         "usage: {argv0}:\n\
@@ -15,7 +19,7 @@ pub fn help(argv0: &str) -> String {
          \x20 --ast                 print the configuration's syntax tree and exit\n\
          \x20 --check               check the configuration (syntax and meaning) and exit\n\
          \x20 --version             show version and license and exit\n\
-         \x20 --loglevel arg        how much to log, from 0 (nothing) to 3 (every packet)\n\
+         \x20 --loglevel arg        how much to log, from 0 (nothing) to 3 (every packet and decision)\n\
          \n\
          endpoints (instead of a configuration file: every packet is forwarded between them):\n\
          {endpoints}\

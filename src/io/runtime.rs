@@ -95,6 +95,9 @@ struct Runtime {
     start: Instant,
     /// Where the signing state is saved (only when some interface has a key).
     state_file: Option<StateFile>,
+    /// Some interface has a signing key: the core is told the wall clock every turn
+    /// (whether or not its state can be saved).
+    signing: bool,
     /// The recorder, when the configuration has a `record` block.
     recorder: Option<Recorder>,
     /// The flight log writer, when the configuration has a `flight_log` block.
@@ -127,7 +130,7 @@ impl Runtime {
 
     /// Tells the core the wall clock, for signature timestamps (when it signs).
     fn tell_wall_clock(&mut self, now: Timestamp) {
-        if self.state_file.is_some() {
+        if self.signing {
             self.engine.set_wall_clock(now, wall_clock());
         }
     }
@@ -883,6 +886,7 @@ fn start(
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
     let state_file = open_state_file(config, &mut engine, Timestamp::ZERO)?;
+    let engine_signs = engine.has_signing_keys();
     let recorder = start_recording(config, &mut engine);
     if config.record.is_some() && recorder.is_none() {
         // Said by the recorder; a reload tries again.
@@ -910,6 +914,7 @@ fn start(
         logger,
         start,
         state_file,
+        signing: engine_signs,
         recorder,
         flight_log,
         stats,

@@ -70,6 +70,10 @@ fn help_and_version() {
             assert!(stdout.contains(line), "{line} missing from\n{stdout}");
         }
         assert!(stdout.ends_with("\n\n"));
+        // Every endpoint's example stands apart from its form.
+        for line in stdout.lines().filter(|l| l.contains("e.g. ")) {
+            assert!(line.contains("  e.g. "), "{line:?} runs together");
+        }
     }
     let out = run_in(&dir, &["--ver"], &[]);
     assert_eq!(out.status.code(), Some(0));
@@ -94,11 +98,11 @@ fn option_errors_exit_1_with_the_original_texts() {
         ),
         (
             &["--loglevel", "99"],
-            "error: the argument ('99') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet)\n",
+            "error: the argument ('99') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet and decision)\n",
         ),
         (
             &["--loglevel", "-1"],
-            "error: the argument ('-1') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet)\n",
+            "error: the argument ('-1') for option '--loglevel' is invalid: the log level is a number from 0 (nothing) to 3 (every packet and decision)\n",
         ),
         (
             &["--config", "a", "--conf=b"],

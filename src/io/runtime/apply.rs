@@ -121,6 +121,10 @@ impl Runtime {
         for line in &done.details {
             log::stderr_text(&format!("reload: {line}\n"));
         }
+        // Keys added by this reload sign from this turn on: the core learns the wall
+        // clock now, whatever becomes of the state file.
+        self.signing = self.engine.has_signing_keys();
+        self.tell_wall_clock(now);
         if done.signing_state_changed {
             if let Some(file) = self.state_file.take() {
                 file.finish(self.engine.signing_state(true).as_ref());
