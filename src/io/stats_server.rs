@@ -150,10 +150,39 @@ fn serve(mut stream: TcpStream, latest: &Latest) {
         }
     }
     let _ = stream.flush();
+    linger(&mut stream, deadline);
 }
 
-/// The request head (up to the blank line, or whatever arrived by the deadline if the
-/// client stopped, or [`MAX_HEAD`] bytes); `None` if nothing usable arrived.
+/// Ends the answer with a FIN and reads (and drops) what the client still sends until
+/// it closes its side, at most until `deadline`: closing a socket with unread input
+/// makes the kernel send a reset, which throws away the part of the answer the client
+/// has not taken yet (a request with a body, a second request behind the first).
+fn linger(stream: &mut TcpStream, deadline: Instant) {
+    if stream.shutdown(std::net::Shutdown::Write).is_err() {
+        return;
+    }
+    let mut scratch = [0u8; 1024];
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
+            return;
+        }
+        match stream.read(&mut scratch) {
+            Ok(0) | Err(_) => return,
+            Ok(_) => {}
+        }
+    }
+}
+
+/// Whether `head` holds a whole request head: up to a blank line, its lines ended by
+/// CRLF or by a bare LF (which RFC 9112 lets a server accept).
+fn head_complete(head: &[u8]) -> bool {
+    head.windows(4).any(|w| w == b"\r\n\r\n") || head.windows(2).any(|w| w == b"\n\n")
+}
+
+/// The request head (up to the blank line, or whatever arrived by the deadline or before
+/// the client stopped sending, or [`MAX_HEAD`] bytes); `None` if nothing arrived. An
+/// incomplete head is answered as a bad request.
 fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
     let deadline = Instant::now() + DEADLINE;
     let mut head = Vec::with_capacity(1024);
@@ -161,18 +190,19 @@ fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
     loop {
         let left = deadline.saturating_duration_since(Instant::now());
         if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
-            return None;
+            break;
         }
         let n = match stream.read(&mut chunk) {
-            Ok(0) | Err(_) => return None,
+            Ok(0) | Err(_) => break,
             Ok(n) => n,
         };
         let room = MAX_HEAD + 1 - head.len().min(MAX_HEAD + 1);
         head.extend_from_slice(&chunk[..n.min(room)]);
-        if head.len() > MAX_HEAD || head.windows(4).any(|w| w == b"\r\n\r\n") {
+        if head.len() > MAX_HEAD || head_complete(&head) {
             return Some(head);
         }
     }
+    (!head.is_empty()).then_some(head)
 }
 
 /// The whole answer (status line, headers, body) to the request head `head`, from

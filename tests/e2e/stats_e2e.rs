@@ -606,3 +606,55 @@ fn head_and_the_absolute_form_are_understood() {
     assert!(post.contains("\r\nAllow: GET, HEAD\r\n"), "{post}");
     drop(router);
 }
+
+/// The whole answer reaches a client that sent more than the head (a body, or a second
+/// request behind the first), and ends with a FIN: closing with that input unread
+/// would make the kernel reset the connection, which cuts off what the client has not
+/// read yet. A head whose lines end with a bare LF is understood (RFC 9112 lets a
+/// server accept it), and one cut short by the client's end gets 400, not silence.
+#[test]
+fn answers_are_whole_whatever_the_client_sent_after_the_head() {
+    let scratch = Scratch::new("stats-linger");
+    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
+    let config = format!(
+        "udp {{ port {udp_port}; address 127.0.0.1; }}\nstats {{ port {http_port}; }}\ndefault_action accept;\n"
+    );
+    let router = Router::start(&scratch, &config, 0);
+    stats(http_port); // listening
+    let body = "x".repeat(16 * 1024);
+    let second = "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n".repeat(400);
+    for request in [
+        format!(
+            "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+        format!("GET /stats HTTP/1.1\r\nHost: x\r\n\r\n{second}"),
+    ] {
+        let mut s = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
+        s.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+        s.write_all(request.as_bytes()).expect("request");
+        let mut answer = Vec::new();
+        s.read_to_end(&mut answer)
+            .expect("the answer, ended by a FIN rather than a reset");
+        let answer = String::from_utf8(answer).expect("utf-8");
+        let (head, got) = answer.split_once("\r\n\r\n").expect("head and body");
+        assert!(head.starts_with("HTTP/1.1 200 OK\r\n"), "{head}");
+        let length: usize = head
+            .lines()
+            .find_map(|l| l.strip_prefix("Content-Length: "))
+            .and_then(|n| n.parse().ok())
+            .expect("Content-Length");
+        assert_eq!(got.len(), length, "the whole body");
+    }
+    let bare = raw(http_port, "GET /stats HTTP/1.1\nHost: x\n\n");
+    assert!(bare.starts_with("HTTP/1.1 200 OK\r\n"), "{bare}");
+    let mut s = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
+    s.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+    s.write_all(b"GET /stats HTTP/1.1\r\nHost: x\r\n")
+        .expect("request");
+    s.shutdown(std::net::Shutdown::Write).expect("half-close");
+    let mut cut = String::new();
+    s.read_to_string(&mut cut).expect("answer");
+    assert!(cut.starts_with("HTTP/1.1 400 Bad Request\r\n"), "{cut}");
+    drop(router);
+}
