@@ -84,6 +84,7 @@ impl Dataflash {
     }
 
     /// Blocks held back behind a missing one.
+    #[cfg(test)]
     pub(crate) fn held(&self) -> usize {
         self.held.len()
     }
@@ -153,6 +154,15 @@ impl Dataflash {
         }
         self.ask(now, NACKS_PER_BLOCK, acts);
         Verdict::Taken
+    }
+
+    /// Ends the log: every missing block is given up, and the blocks held behind the
+    /// gaps go to the file in order (they were acknowledged: the autopilot will not send
+    /// them again).
+    pub(crate) fn finish(&mut self, acts: &mut Acts) {
+        acts.lost += self.missing.len() as u64;
+        self.missing.clear();
+        self.drain(acts);
     }
 
     /// Asks again for the missing blocks due at `now`, gives up those asked for too
@@ -295,6 +305,22 @@ mod tests {
         assert_eq!(&acts.bytes[200..400], &data(1));
         assert_eq!(&acts.bytes[400..600], &data(2));
         assert_eq!(d.poll_timeout(), None);
+    }
+
+    #[test]
+    fn a_finished_log_writes_what_it_held_behind_its_gaps() {
+        let mut d = Dataflash::new();
+        let mut acts = Acts::default();
+        for s in (0..3).chain(4..6).chain(8..10) {
+            d.block(s, &data(s), at(0), &mut acts);
+        }
+        assert_eq!((acts.blocks, d.held()), (3, 4));
+        let mut end = Acts::default();
+        d.finish(&mut end);
+        assert_eq!((end.blocks, end.lost, d.held()), (4, 3, 0));
+        let want: Vec<u8> = [4, 5, 8, 9].iter().flat_map(|&s| data(s)).collect();
+        assert_eq!(end.bytes, want);
+        assert!(end.statuses.is_empty());
     }
 
     #[test]

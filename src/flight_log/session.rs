@@ -304,10 +304,13 @@ impl FlightLogger {
     /// Ends the log now: asks the autopilot to stop (unless it was asked already),
     /// tells the writer.
     fn stop(&mut self, now: Timestamp) {
-        if let Some(active) = self.active.take() {
-            if let Stream::Dataflash(d) = &active.stream {
-                // Blocks held behind a gap that will not be filled now.
-                self.counters.lost += d.held() as u64;
+        if let Some(mut active) = self.active.take() {
+            if let Stream::Dataflash(d) = &mut active.stream {
+                // The gaps will not be filled now; what came after them ends the file.
+                let mut ending = Acts::default();
+                d.finish(&mut ending);
+                self.counters.lost += ending.lost;
+                self.write_data(ending.bytes, u64::from(ending.blocks));
             }
             if active.ending.is_none() {
                 self.send_stop(active.protocol);
@@ -351,11 +354,17 @@ impl FlightLogger {
         let mut acts = Acts::default();
         let new_log = (restarted && seqno == 0 && d.next() > 1)
             || d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
+        let mut ending = Acts::default();
         if new_log {
-            // The autopilot started a new log (it rebooted): a new file.
-            self.counters.lost += d.held() as u64;
+            // The autopilot started a new log (it rebooted): what the old one held
+            // behind its gaps ends its file, and a new file begins.
+            d.finish(&mut ending);
             *d = Dataflash::new();
             d.block(seqno, &data, now, &mut acts);
+        }
+        if new_log {
+            self.counters.lost += ending.lost;
+            self.write_data(ending.bytes, u64::from(ending.blocks));
             self.push_write(LogWrite::End);
             self.begin(Protocol::Dataflash);
         }

@@ -622,3 +622,22 @@ mod props {
         }
     }
 }
+
+/// At shutdown (or a reload that ends the log), blocks received and acknowledged behind
+/// a gap go to the file in order, the gap given up: the autopilot will not send them
+/// again, so dropping them would lose them for good.
+#[test]
+fn blocks_held_behind_a_gap_end_the_file_when_the_log_stops() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    for s in (0..3).chain(4..10) {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    assert_eq!(data(&v.writes()).0, expected(0..3), "4–9 wait behind 3");
+    v.e.stop_flight_log(v.now);
+    let writes = v.writes();
+    assert_eq!(writes.last(), Some(&LogWrite::End));
+    assert_eq!(data(&writes).0, expected(4..10));
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!((c.blocks, c.lost), (9, 1));
+}
