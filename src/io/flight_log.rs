@@ -142,6 +142,8 @@ struct List {
     pattern: FilePattern,
     dir: PathBuf,
     made: MadeList,
+    /// The suffixes given under the last file's name.
+    suffixes: made_files::Suffixes,
 }
 
 /// The file being written.
@@ -274,8 +276,17 @@ impl Writer {
                 }
             };
             let dir = PathBuf::from(pattern.dir());
-            let made = MadeList::open(&pattern);
-            self.lists.insert(ext, List { pattern, dir, made });
+            let made = MadeList::open(&pattern, "flight log", "logs");
+            let suffixes = made_files::Suffixes::default();
+            self.lists.insert(
+                ext,
+                List {
+                    pattern,
+                    dir,
+                    made,
+                    suffixes,
+                },
+            );
         }
         self.lists.get_mut(ext)
     }
@@ -312,24 +323,25 @@ impl Writer {
         let Some(list) = self.list(ext) else {
             return;
         };
-        let (file, name) = match made_files::create_new(&list.dir, &list.pattern) {
-            Ok(opened) => opened,
-            Err(e) => {
-                let why = match e {
-                    CreateError::Failed { path, error } => {
-                        format!("cannot create {}: {error}", path.display())
+        let (file, name) =
+            match made_files::create_new(&list.dir, &list.pattern, &mut list.suffixes) {
+                Ok(opened) => opened,
+                Err(e) => {
+                    let why = match e {
+                        CreateError::Failed { path, error } => {
+                            format!("cannot create {}: {error}", path.display())
+                        }
+                        CreateError::AllTaken => "every name of the pattern is taken".to_string(),
+                    };
+                    // Said once until writing works again (it is tried with each batch).
+                    if !std::mem::replace(&mut self.trouble, true) {
+                        log::warn(&format_args!(
+                            "flight log: {why}; blocks are dropped and counted until it works again"
+                        ));
                     }
-                    CreateError::AllTaken => "every name of the pattern is taken".to_string(),
-                };
-                // Said once until writing works again (it is tried with each batch).
-                if !std::mem::replace(&mut self.trouble, true) {
-                    log::warn(&format_args!(
-                        "flight log: {why}; blocks are dropped and counted until it works again"
-                    ));
+                    return;
                 }
-                return;
-            }
-        };
+            };
         list.made.add(&name, &file);
         let path = list.dir.join(&name).display().to_string();
         let files = list.made.recordings();

@@ -25,14 +25,44 @@ pub(super) enum CreateError {
     AllTaken,
 }
 
+/// The suffixes one writer gave under one name of its pattern (one second's name, or a
+/// fixed name): a file made later under the same name takes a higher suffix than every
+/// one before it, even when an older one was removed meanwhile and its name is free
+/// again, so that suffixes follow the order the files were made in (rotation orders
+/// files of one time by suffix, and some file systems keep times to 2 s only). Past
+/// [`MAX_SUFFIX`] the search starts from the bare name again.
+#[derive(Debug, Default)]
+pub(super) struct Suffixes {
+    /// The bare name (suffix 0) of the last file made, and the suffix to try next.
+    last: Option<(String, u32)>,
+}
+
 /// Creates `dir` if needed and in it a new file named by `pattern` after the local time
-/// now (with a suffix if the name is taken); never opens a file that exists. Returns the
-/// file, open for appending, and its name.
-pub(super) fn create_new(dir: &Path, pattern: &FilePattern) -> Result<(File, String), CreateError> {
+/// now (with a suffix if the name is taken, or was given before: see [`Suffixes`]);
+/// never opens a file that exists. Returns the file, open for appending, and its name.
+pub(super) fn create_new(
+    dir: &Path,
+    pattern: &FilePattern,
+    suffixes: &mut Suffixes,
+) -> Result<(File, String), CreateError> {
+    create_at(dir, pattern, &local_now(), suffixes)
+}
+
+/// [`create_new`] at the local time `time`.
+fn create_at(
+    dir: &Path,
+    pattern: &FilePattern,
+    time: &LocalTime,
+    suffixes: &mut Suffixes,
+) -> Result<(File, String), CreateError> {
     let _ = fs::create_dir_all(dir);
-    let time = local_now();
-    for n in 0..=MAX_SUFFIX {
-        let name = pattern.name(&time, n);
+    let bare = pattern.name(time, 0);
+    let first = match &suffixes.last {
+        Some((name, next)) if *name == bare && *next <= MAX_SUFFIX => *next,
+        _ => 0,
+    };
+    for n in (first..=MAX_SUFFIX).chain(0..first) {
+        let name = pattern.name(time, n);
         // Appending: after a failed write is cut back, the next one goes at the end
         // again (not where the failed one stopped, which would leave a hole).
         match OpenOptions::new()
@@ -41,7 +71,10 @@ pub(super) fn create_new(dir: &Path, pattern: &FilePattern) -> Result<(File, Str
             .mode(0o640)
             .open(dir.join(&name))
         {
-            Ok(file) => return Ok((file, name)),
+            Ok(file) => {
+                suffixes.last = Some((bare, n.saturating_add(1)));
+                return Ok((file, name));
+            }
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
             Err(error) => {
                 return Err(CreateError::Failed {
@@ -125,5 +158,38 @@ pub(super) fn local_now() -> LocalTime {
         hour,
         minute,
         second,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_later_file_under_one_name_takes_a_higher_suffix_even_where_an_older_name_is_free() {
+        let dir = std::env::temp_dir().join(format!("mavtables-made-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        let pattern =
+            FilePattern::parse(&format!("{}/r_%H-%M-%S.tlog", dir.display())).expect("pattern");
+        let time = local_now();
+        let mut suffixes = Suffixes::default();
+        let make = |suffixes: &mut Suffixes| {
+            create_at(&dir, &pattern, &time, suffixes)
+                .ok()
+                .expect("a new file")
+                .1
+        };
+        let names: Vec<String> = (0..3).map(|_| make(&mut suffixes)).collect();
+        let named = |n: u32| pattern.name(&time, n);
+        assert_eq!(names, [named(0), named(1), named(2)]);
+        // Rotation removed the oldest: its name is free, but the next file is newer.
+        fs::remove_file(dir.join(&names[0])).expect("remove");
+        assert_eq!(make(&mut suffixes), named(3));
+        // Past the last suffix, the lowest free name is taken again.
+        suffixes.last = Some((named(0), MAX_SUFFIX + 1));
+        assert_eq!(make(&mut suffixes), named(0));
+        // Another writer (or a restart) starts from the bare name: the lowest free one.
+        assert_eq!(make(&mut Suffixes::default()), named(4));
+        let _ = fs::remove_dir_all(&dir);
     }
 }

@@ -128,8 +128,13 @@ pub(crate) fn created(pattern: &FilePattern, name: &str) -> Result<bool, String>
     Ok(manifest::judge(entry, pattern, found, sys::effective_uid()) == Verdict::Ours)
 }
 
-/// The recorder's list of the recordings it created, and its file.
+/// A writer's list of the files it created (the recorder's recordings, the flight log's
+/// logs), and its file.
 pub(crate) struct MadeList {
+    /// Whose list it is, as messages begin (`recording`, `flight log`).
+    what: &'static str,
+    /// What its files are called in messages (`recordings`, `logs`).
+    files: &'static str,
     pattern: FilePattern,
     dir: PathBuf,
     list: Manifest,
@@ -145,21 +150,24 @@ pub(crate) struct MadeList {
 }
 
 impl MadeList {
-    /// The list of `pattern` as earlier runs left it; what is wrong with it is said.
-    pub(crate) fn open(pattern: &FilePattern) -> MadeList {
+    /// The list of `pattern` as earlier runs left it; what is wrong with it is said,
+    /// beginning with `what`, calling the files `files`.
+    pub(crate) fn open(pattern: &FilePattern, what: &'static str, files: &'static str) -> MadeList {
         let path = list_path(pattern);
         let (list, may_save) = match read(pattern) {
             Stored::List(list) => (list, true),
             Stored::Absent => (Manifest::default(), true),
             Stored::Refused(why) => {
                 log::warn(&format_args!(
-                    "recording: {} is not a list of recordings mavtables wrote ({why}); it is left alone, no recording of an earlier run is removed, and those of this run are listed for this run only",
+                    "{what}: {} is not a list of {files} mavtables wrote ({why}); it is left alone, no file of an earlier run is removed, and those of this run are listed for this run only",
                     path.display()
                 ));
                 (Manifest::default(), false)
             }
         };
         let mut made = MadeList {
+            what,
+            files,
             pattern: pattern.clone(),
             dir: PathBuf::from(pattern.dir()),
             list,
@@ -186,8 +194,10 @@ impl MadeList {
             .count();
         if strangers > 0 {
             log::warn(&format_args!(
-                "recording: {strangers} files in {} have names of the pattern but are not on the list of recordings mavtables made ({}); they are never removed",
+                "{}: {strangers} files in {} have names of the pattern but are not on the list of {} mavtables made ({}); they are never removed",
+                self.what,
                 self.dir.display(),
+                self.files,
                 Manifest::file_name(&self.pattern)
             ));
         }
@@ -202,7 +212,8 @@ impl MadeList {
                 id: id_of(&meta),
             }),
             Err(e) => log::warn(&format_args!(
-                "recording: cannot tell which file {} is ({e}); it is never removed",
+                "{}: cannot tell which file {} is ({e}); it is never removed",
+                self.what,
                 self.dir.join(name).display()
             )),
         }
@@ -247,8 +258,11 @@ impl MadeList {
                 if !self.failing {
                     self.failing = true;
                     log::warn(&format_args!(
-                        "recording: cannot save the list of recordings {}: {e}; recordings not on it are never removed",
-                        path.display()
+                        "{}: cannot save the list of {} {}: {e}; {} not on it are never removed",
+                        self.what,
+                        self.files,
+                        path.display(),
+                        self.files
                     ));
                 }
             }
@@ -256,7 +270,9 @@ impl MadeList {
         if left_out > 0 && !self.trimmed {
             self.trimmed = true;
             log::warn(&format_args!(
-                "recording: the list of recordings {} is full; its {left_out} oldest are left out of it and will not be removed by later runs",
+                "{}: the list of {} {} is full; its {left_out} oldest are left out of it and will not be removed by later runs",
+                self.what,
+                self.files,
                 path.display()
             ));
         }
@@ -310,7 +326,7 @@ mod tests {
         let dir = Dir::new("saved");
         let p = dir.pattern();
         assert!(matches!(read(&p), Stored::Absent));
-        let mut made = MadeList::open(&p);
+        let mut made = MadeList::open(&p, "recording", "recordings");
         let name = "2024_100000.tlog";
         let file = File::create(dir.0.join(name)).expect("create");
         made.add(name, &file);
@@ -322,7 +338,7 @@ mod tests {
         fs::write(dir.0.join("other"), "mine").expect("other");
         fs::rename(dir.0.join("other"), dir.0.join(name)).expect("replace");
         assert_eq!(created(&p, name), Ok(false));
-        let mut again = MadeList::open(&p);
+        let mut again = MadeList::open(&p, "recording", "recordings");
         assert!(again.recordings().is_empty());
         assert_eq!(created(&p, "2024_100001.tlog"), Ok(false));
     }
@@ -337,7 +353,7 @@ mod tests {
         fs::remove_dir(&path).expect("rmdir");
         fs::write(&path, vec![b'#'; MAX_BYTES + 1]).expect("long");
         assert!(matches!(read(&p), Stored::Refused(why) if why.contains("longer")));
-        let mut made = MadeList::open(&p);
+        let mut made = MadeList::open(&p, "recording", "recordings");
         made.save();
         assert_eq!(
             fs::metadata(&path).expect("meta").len(),
@@ -351,7 +367,7 @@ mod tests {
         fs::remove_file(&path).expect("rm");
         fs::write(&path, "1 2 3 notes.tlog\n").expect("text");
         assert!(matches!(read(&p), Stored::Refused(why) if why.contains("not a list")));
-        MadeList::open(&p).save();
+        MadeList::open(&p, "recording", "recordings").save();
         assert_eq!(
             fs::read_to_string(&path).expect("read"),
             "1 2 3 notes.tlog\n"

@@ -96,7 +96,7 @@ impl Recorder {
             let writer = Writer {
                 dir: PathBuf::from(pattern.dir()),
                 // Read here, on the writer's thread: the disk may be slow.
-                made: MadeList::open(&pattern),
+                made: MadeList::open(&pattern, "recording", "recordings"),
                 pattern,
                 max_file_bytes,
                 max_files,
@@ -106,6 +106,7 @@ impl Recorder {
                 name: None,
                 size: 0,
                 trouble: None,
+                suffixes: made_files::Suffixes::default(),
             };
             writer.run();
         });
@@ -214,6 +215,8 @@ struct Writer {
     size: u64,
     /// What is failing now, and the writer's drop count when it began.
     trouble: Option<(Trouble, u64)>,
+    /// The suffixes given under the last file's name.
+    suffixes: made_files::Suffixes,
 }
 
 impl Writer {
@@ -352,24 +355,25 @@ impl Writer {
     /// suffix if the name is taken); then removes the recordings beyond `max_files`.
     fn open_new(&mut self) {
         self.close();
-        let (file, name) = match made_files::create_new(&self.dir, &self.pattern) {
-            Ok(opened) => opened,
-            Err(CreateError::Failed { path, error }) => {
-                self.trouble(
-                    Trouble::Disk,
-                    &format_args!("cannot create {}: {error}", path.display()),
-                );
-                return;
-            }
-            Err(CreateError::AllTaken) => {
-                let dir = self.dir.display().to_string();
-                self.trouble(
-                    Trouble::Disk,
-                    &format_args!("every name up to suffix -{MAX_SUFFIX} is taken in {dir}"),
-                );
-                return;
-            }
-        };
+        let (file, name) =
+            match made_files::create_new(&self.dir, &self.pattern, &mut self.suffixes) {
+                Ok(opened) => opened,
+                Err(CreateError::Failed { path, error }) => {
+                    self.trouble(
+                        Trouble::Disk,
+                        &format_args!("cannot create {}: {error}", path.display()),
+                    );
+                    return;
+                }
+                Err(CreateError::AllTaken) => {
+                    let dir = self.dir.display().to_string();
+                    self.trouble(
+                        Trouble::Disk,
+                        &format_args!("every name up to suffix -{MAX_SUFFIX} is taken in {dir}"),
+                    );
+                    return;
+                }
+            };
         self.made.add(&name, &file);
         self.file = Some(file);
         self.name = Some(name);
