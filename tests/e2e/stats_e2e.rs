@@ -552,6 +552,19 @@ default_action accept;
     drop(router);
 }
 
+/// A router with a UDP server and a `stats` endpoint, once the endpoint answers: its
+/// scratch directory (kept while the router runs), the router and the endpoint's port.
+fn endpoint_router(tag: &str) -> (Scratch, Router, u16) {
+    let scratch = Scratch::new(tag);
+    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
+    let config = format!(
+        "udp {{ port {udp_port}; address 127.0.0.1; }}\nstats {{ port {http_port}; }}\ndefault_action accept;\n"
+    );
+    let router = Router::start(&scratch, &config, 0);
+    stats(http_port); // listening
+    (scratch, router, http_port)
+}
+
 /// What the endpoint on `port` answers to the raw request `text`, whole.
 fn raw(port: u16, text: &str) -> String {
     let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect to the endpoint");
@@ -568,13 +581,7 @@ fn raw(port: u16, text: &str) -> String {
 /// does not serve gets 405 naming the ones it does.
 #[test]
 fn head_and_the_absolute_form_are_understood() {
-    let scratch = Scratch::new("stats-http");
-    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
-    let config = format!(
-        "udp {{ port {udp_port}; address 127.0.0.1; }}\nstats {{ port {http_port}; }}\ndefault_action accept;\n"
-    );
-    let router = Router::start(&scratch, &config, 0);
-    stats(http_port); // listening
+    let (_scratch, router, http_port) = endpoint_router("stats-http");
     for path in ["/stats", "/metrics", "/"] {
         let head = raw(
             http_port,
@@ -614,13 +621,7 @@ fn head_and_the_absolute_form_are_understood() {
 /// server accept it), and one cut short by the client's end gets 400, not silence.
 #[test]
 fn answers_are_whole_whatever_the_client_sent_after_the_head() {
-    let scratch = Scratch::new("stats-linger");
-    let (udp_port, http_port) = (free_udp_port(), free_tcp_port());
-    let config = format!(
-        "udp {{ port {udp_port}; address 127.0.0.1; }}\nstats {{ port {http_port}; }}\ndefault_action accept;\n"
-    );
-    let router = Router::start(&scratch, &config, 0);
-    stats(http_port); // listening
+    let (_scratch, router, http_port) = endpoint_router("stats-linger");
     let body = "x".repeat(16 * 1024);
     let second = "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n".repeat(400);
     for request in [
