@@ -219,6 +219,13 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
     let mut request = httparse::Request::new(&mut headers);
     match request.parse(head) {
         Ok(httparse::Status::Complete(_)) => {}
+        Err(httparse::Error::TooManyHeaders) => {
+            return answer(
+                431,
+                "text/plain; charset=utf-8",
+                b"too many header fields\n",
+            );
+        }
         Ok(httparse::Status::Partial) | Err(_) => {
             return answer(400, "text/plain; charset=utf-8", b"bad request\n");
         }

@@ -67,17 +67,20 @@ pub fn listener(
 struct OriginCheck(Arc<[String]>);
 
 impl Callback for OriginCheck {
-    /// Refuses (403) a request whose `Origin` is not one of the block's; takes any
-    /// request when the block names none, and requests without the header (not made
-    /// by a web page).
+    /// Refuses (403) a request whose `Origin` is not one of the block's, or that has
+    /// more than one (a browser sends one; two could pass an allowed one beside the
+    /// real one); takes any request when the block names none, and requests without
+    /// the header (not made by a web page).
     fn on_request(self, request: &Request, response: Response) -> Result<Response, ErrorResponse> {
-        let Some(origin) = request.headers().get("origin") else {
+        let mut origins = request.headers().get_all("origin").iter();
+        let Some(origin) = origins.next() else {
             return Ok(response);
         };
         let allowed = self.0.is_empty()
-            || origin
-                .to_str()
-                .is_ok_and(|o| self.0.iter().any(|a| a.eq_ignore_ascii_case(o)));
+            || (origins.next().is_none()
+                && origin
+                    .to_str()
+                    .is_ok_and(|o| self.0.iter().any(|a| a.eq_ignore_ascii_case(o))));
         if allowed {
             return Ok(response);
         }

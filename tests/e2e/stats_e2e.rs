@@ -647,6 +647,14 @@ fn answers_are_whole_whatever_the_client_sent_after_the_head() {
             .expect("Content-Length");
         assert_eq!(got.len(), length, "the whole body");
     }
+    let many = raw(
+        http_port,
+        &format!("GET /stats HTTP/1.1\r\n{}\r\n", "X-A: b\r\n".repeat(70)),
+    );
+    assert!(
+        many.starts_with("HTTP/1.1 431 Request Header Fields Too Large\r\n"),
+        "{many}"
+    );
     let bare = raw(http_port, "GET /stats HTTP/1.1\nHost: x\n\n");
     assert!(bare.starts_with("HTTP/1.1 200 OK\r\n"), "{bare}");
     let mut s = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");

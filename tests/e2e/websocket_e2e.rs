@@ -319,6 +319,11 @@ fn a_connection_without_a_handshake_is_closed_after_5_s() {
 
 /// A client handshaking with `origin` as its `Origin` header (None: without one).
 fn ws_client_from(port: u16, origin: Option<&str>) -> tungstenite::Result<Client> {
+    ws_client_with_origins(port, origin.as_slice())
+}
+
+/// A client handshaking with one `Origin` header for each of `origins`.
+fn ws_client_with_origins(port: u16, origins: &[&str]) -> tungstenite::Result<Client> {
     use tungstenite::client::IntoClientRequest;
     let stream = connect(&format!("127.0.0.1:{port}"));
     stream
@@ -327,10 +332,10 @@ fn ws_client_from(port: u16, origin: Option<&str>) -> tungstenite::Result<Client
     let mut request = format!("ws://127.0.0.1:{port}/")
         .into_client_request()
         .expect("request");
-    if let Some(origin) = origin {
+    for origin in origins {
         request
             .headers_mut()
-            .insert("Origin", origin.parse().expect("header"));
+            .append("Origin", origin.parse().expect("header"));
     }
     tungstenite::client(request, stream)
         .map(|(ws, _)| ws)
@@ -359,14 +364,22 @@ fn origin_statements_refuse_other_sites_pages() {
     router
         .err
         .wait_for("origin is not one the block allows", 5 * SECOND);
+    // A listed origin beside another (no browser sends two) is refused too.
+    match ws_client_with_origins(port, &["https://ground.example", "https://evil.example"]) {
+        Err(tungstenite::Error::Http(r)) => assert_eq!(r.status(), 403),
+        other => panic!("{:?} instead of 403", other.map(|_| ())),
+    }
+    router
+        .err
+        .wait_for("origin is not one the block allows", 5 * SECOND);
     let mut listed = ws_client_from(port, Some("HTTPS://ground.example")).expect("listed");
     let mut tool = ws_client_from(port, None).expect("no origin");
     v.send(&attitude(1, 1)).expect("send");
     assert_eq!(messages(&mut listed, 1, 5 * SECOND), [attitude(1, 1)]);
     assert_eq!(messages(&mut tool, 1, 5 * SECOND), [attitude(1, 1)]);
     let label = format!("websocket 127.0.0.1:{port}");
-    counters_until(&mut router, "one I/O error", |c| {
-        c.interface(&label).is_some_and(|i| i.io_errors == 1)
+    counters_until(&mut router, "two I/O errors", |c| {
+        c.interface(&label).is_some_and(|i| i.io_errors == 2)
     });
     router.stop();
 }
