@@ -16,7 +16,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use crate::signing;
 use common::eventually;
 use common::net::{
     SECOND, attitude, connect, free_tcp_port, heartbeat, number_of, numbered, udp_frames,
@@ -646,60 +645,6 @@ fn the_stats_endpoint_is_kept_or_moved_by_a_reload() {
     eventually("the old port closed", 5 * SECOND, || {
         TcpStream::connect(("127.0.0.1", http_a)).is_err()
     });
-    router.stop();
-}
-
-/// Whether process `pid` is stopped (`T` in `/proc/PID/stat`).
-fn stopped(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| rest.starts_with('T')))
-        .unwrap_or(false)
-}
-
-/// A reload that gives the router its first signing key tells its signing clock the
-/// wall time as it is then, not as it was at start: a frame signed in the reload's own
-/// turn carries the wall time, not the wall time plus the router's uptime (a clock run
-/// ahead stays ahead, in every later timestamp and in the saved state). The router is
-/// stopped while a frame and the SIGHUP wait for it, so that it reads both in one turn.
-#[test]
-fn a_first_signing_key_added_by_reload_signs_with_the_wall_clock() {
-    let s = Scratch::new("reload-first-key");
-    let port = free_udp_port();
-    let unsigned = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
-    let mut router = Router::start(&s, &unsigned, 1);
-    let a = udp_peer(&mut router, port, 1);
-    let b = udp_peer(&mut router, port, 2);
-    // Uptime for a clock told the wall time "at start" to be off by.
-    thread::sleep(Duration::from_millis(1500));
-    let key = signing::key_file(&s, "k.key", "a passphrase of the fleet\n");
-    let state = s.dir.join("signing.state").display().to_string();
-    let signed = format!(
-        "signing_state {state};\nudp {{ port {port}; address 127.0.0.1; signing_key {key}; allow_unsigned yes; }}\ndefault_action accept;\n"
-    );
-    std::fs::write(&router.config, &signed).expect("write config");
-    let pid = router.pid();
-    router.signal(libc::SIGSTOP);
-    eventually("the router stopped", 5 * SECOND, || stopped(pid));
-    a.send(&attitude(1, 7)).expect("send");
-    router.signal(libc::SIGHUP);
-    router.signal(libc::SIGCONT);
-    let line = router.err.wait_for(RELOADED, 10 * SECOND);
-    assert!(line.contains("+0 interfaces, -0, 1 changed"), "{line}");
-    let frames = udp_frames(&b, 1, 10 * SECOND);
-    let frame = frames.first().expect("the frame, signed");
-    assert_eq!(frame[2] & 1, 1, "signed: {frame:?}");
-    let at = frame.len() - 12;
-    let mut ts = [0u8; 8];
-    ts[..6].copy_from_slice(&frame[at..at + 6]);
-    let ts = u64::from_le_bytes(ts);
-    let wall = signing::now_ts();
-    // 10 µs units: within a quarter of a second of the wall clock.
-    assert!(
-        ts <= wall + 25_000 && ts + 25_000 >= wall,
-        "signed at {ts}, wall clock {wall}: {} ms apart",
-        (ts as i64 - wall as i64) / 100
-    );
     router.stop();
 }
 
