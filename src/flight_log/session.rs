@@ -309,8 +309,8 @@ impl FlightLogger {
                 // The gaps will not be filled now; what came after them ends the file.
                 let mut ending = Acts::default();
                 d.finish(&mut ending);
-                self.counters.lost += ending.lost;
-                self.write_data(ending.bytes, u64::from(ending.blocks));
+                // It sends no status, so no autopilot component is needed.
+                self.finish_acts(ending, 0);
             }
             if active.ending.is_none() {
                 self.send_stop(active.protocol);
@@ -354,17 +354,14 @@ impl FlightLogger {
         let mut acts = Acts::default();
         let new_log = (restarted && seqno == 0 && d.next() > 1)
             || d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
-        let mut ending = Acts::default();
         if new_log {
             // The autopilot started a new log (it rebooted): what the old one held
             // behind its gaps ends its file, and a new file begins.
+            let mut ending = Acts::default();
             d.finish(&mut ending);
             *d = Dataflash::new();
             d.block(seqno, &data, now, &mut acts);
-        }
-        if new_log {
-            self.counters.lost += ending.lost;
-            self.write_data(ending.bytes, u64::from(ending.blocks));
+            self.finish_acts(ending, component);
             self.push_write(LogWrite::End);
             self.begin(Protocol::Dataflash);
         }

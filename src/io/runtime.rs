@@ -95,9 +95,6 @@ struct Runtime {
     start: Instant,
     /// Where the signing state is saved (only when some interface has a key).
     state_file: Option<StateFile>,
-    /// Some interface has a signing key: the core is told the wall clock every turn
-    /// (whether or not its state can be saved).
-    signing: bool,
     /// The recorder, when the configuration has a `record` block.
     recorder: Option<Recorder>,
     /// The flight log writer, when the configuration has a `flight_log` block.
@@ -130,7 +127,8 @@ impl Runtime {
 
     /// Tells the core the wall clock, for signature timestamps (when it signs).
     fn tell_wall_clock(&mut self, now: Timestamp) {
-        if self.signing {
+        // Whenever some interface has a key, whether or not its state can be saved.
+        if self.engine.has_signing_keys() {
             self.engine.set_wall_clock(now, wall_clock());
         }
     }
@@ -886,7 +884,6 @@ fn start(
         log::warn(&"no interfaces are configured: waiting for SIGINT or SIGTERM");
     }
     let state_file = open_state_file(config, &mut engine, Timestamp::ZERO)?;
-    let engine_signs = engine.has_signing_keys();
     let recorder = start_recording(config, &mut engine);
     if config.record.is_some() && recorder.is_none() {
         // Said by the recorder; a reload tries again.
@@ -914,7 +911,6 @@ fn start(
         logger,
         start,
         state_file,
-        signing: engine_signs,
         recorder,
         flight_log,
         stats,

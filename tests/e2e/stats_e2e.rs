@@ -565,6 +565,14 @@ fn endpoint_router(tag: &str) -> (Scratch, Router, u16) {
     (scratch, router, http_port)
 }
 
+/// The `Content-Length` of the response head `head`.
+fn content_length(head: &str) -> usize {
+    head.lines()
+        .find_map(|l| l.strip_prefix("Content-Length: "))
+        .and_then(|n| n.parse().ok())
+        .expect("Content-Length")
+}
+
 /// What the endpoint on `port` answers to the raw request `text`, whole.
 fn raw(port: u16, text: &str) -> String {
     let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect to the endpoint");
@@ -590,11 +598,7 @@ fn head_and_the_absolute_form_are_understood() {
         let (status, rest) = head.split_once("\r\n").expect("a status line");
         assert_eq!(status, "HTTP/1.1 200 OK", "HEAD {path}");
         assert!(rest.ends_with("\r\n\r\n"), "HEAD {path}: no body: {head:?}");
-        let length: usize = rest
-            .lines()
-            .find_map(|l| l.strip_prefix("Content-Length: "))
-            .and_then(|n| n.parse().ok())
-            .expect("Content-Length");
+        let length = content_length(rest);
         assert!(length > 0, "HEAD {path}: the length GET's body would have");
     }
     let absolute = raw(
@@ -640,12 +644,7 @@ fn answers_are_whole_whatever_the_client_sent_after_the_head() {
         let answer = String::from_utf8(answer).expect("utf-8");
         let (head, got) = answer.split_once("\r\n\r\n").expect("head and body");
         assert!(head.starts_with("HTTP/1.1 200 OK\r\n"), "{head}");
-        let length: usize = head
-            .lines()
-            .find_map(|l| l.strip_prefix("Content-Length: "))
-            .and_then(|n| n.parse().ok())
-            .expect("Content-Length");
-        assert_eq!(got.len(), length, "the whole body");
+        assert_eq!(got.len(), content_length(head), "the whole body");
     }
     let many = raw(
         http_port,

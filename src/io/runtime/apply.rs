@@ -23,7 +23,7 @@ use super::{
 };
 use crate::config::{self, FromFile, Interface};
 use crate::routing::{InterfaceId, Request, Timestamp};
-use crate::signing::state::{STATE_FILE_LIMIT, SavedState};
+use crate::signing::state::SavedState;
 
 /// A driver for the core's new interface `id`, of block `iface`. A server binds now
 /// (a port in use is an error naming the block); clients and serial ports open when the
@@ -85,7 +85,7 @@ impl Runtime {
         let Some(path) = config.signing_state_path(|k| std::env::var(k).ok()) else {
             return;
         };
-        let Ok(bytes) = crate::files::read_regular(&path, STATE_FILE_LIMIT) else {
+        let Ok(Some(bytes)) = config::read_signing_state(&path) else {
             return;
         };
         let text = String::from_utf8_lossy(&bytes);
@@ -123,7 +123,6 @@ impl Runtime {
         }
         // Keys added by this reload sign from this turn on: the core learns the wall
         // clock now, whatever becomes of the state file.
-        self.signing = self.engine.has_signing_keys();
         self.tell_wall_clock(now);
         if done.signing_state_changed {
             if let Some(file) = self.state_file.take() {
