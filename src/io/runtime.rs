@@ -34,7 +34,7 @@ use super::sys::{self, TimerFd};
 use crate::config::Config;
 use crate::dialect::DIALECT_NAME;
 use crate::recording::{RecordFilter, RecorderStats};
-use crate::routing::{Engine, InterfaceId, Notice, Request, RouterOptions, Timestamp};
+use crate::routing::{CLOSE_FLUSH, Engine, InterfaceId, Notice, Request, RouterOptions, Timestamp};
 use crate::signing::SigningKey;
 use crate::signing::clock::units_from_unix;
 
@@ -45,8 +45,6 @@ const TIMER: Token = Token(usize::MAX - 2);
 /// Token of the waker that look-ups of host names ring when they have an answer, and
 /// drivers fed by threads (Zenoh) when they have input.
 const WAKER: Token = Token(usize::MAX - 3);
-/// How long queued packets may still be sent after SIGINT/SIGTERM.
-const SHUTDOWN_FLUSH: Duration = Duration::from_secs(1);
 /// How long the log output may take to drain at exit.
 const LOG_DRAIN: Duration = Duration::from_secs(1);
 /// How long the recorder may take to write its last records and close its file at exit.
@@ -68,6 +66,9 @@ struct Slot {
     /// Its open waits for a look-up of its remote (the waker rings): it is in
     /// [`Runtime::opening`].
     opening: bool,
+    /// A reload removed its interface: it is not read, only flushed until the core
+    /// closes it ([`Request::Retire`]); it is in [`Runtime::retiring`].
+    retiring: bool,
 }
 
 /// Everything the loop owns.
@@ -87,6 +88,9 @@ struct Runtime {
     /// Slots whose input comes from threads that ring the waker ([`Driver::woken`]):
     /// read when it rings.
     woken: Vec<usize>,
+    /// Slots of interfaces a reload removed that still send their queue (see
+    /// [`Slot::retiring`]).
+    retiring: Vec<usize>,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -243,6 +247,7 @@ impl Runtime {
         if let (Ok(()), Some(fd)) = (&result, fd)
             && slot.driver.level_triggered()
             && !self.stopping
+            && !slot.retiring
         {
             result =
                 sys::watch_level_triggered(self.poll.as_raw_fd(), fd, key, slot.watching_writes);
@@ -302,7 +307,7 @@ impl Runtime {
     }
 
     fn receive(&mut self, key: usize, now: Timestamp) {
-        let Some(slot) = self.slots.get_mut(key) else {
+        let Some(slot) = self.slots.get_mut(key).filter(|s| !s.retiring) else {
             return;
         };
         let progress = slot.driver.receive(&mut self.engine, now);
@@ -341,6 +346,7 @@ impl Runtime {
             ready: false,
             flush_queued: false,
             opening: false,
+            retiring: false,
         });
         if self.slot_of.len() <= interface.0 {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
@@ -369,6 +375,56 @@ impl Runtime {
         if let Some(k) = self.slot_of.get_mut(interface.0) {
             *k = usize::MAX;
         }
+    }
+
+    /// Stops reading the driver of `interface`, which a reload removed, and flushes it
+    /// until the core closes it ([`Request::Retire`]).
+    fn retire(&mut self, interface: InterfaceId) {
+        let Some(&key) = self.slot_of.get(interface.0) else {
+            return;
+        };
+        let Some(slot) = self.slots.get_mut(key) else {
+            return;
+        };
+        slot.retiring = true;
+        slot.opening = false;
+        self.retiring.push(key);
+        self.woken.retain(|&k| k != key);
+        // Watched edge-triggered again: input left waiting must not wake every turn.
+        self.watch(key);
+        self.mark_flush(key);
+    }
+
+    /// Has the core close the retiring interfaces whose driver has nothing in flight
+    /// (nor the core anything queued for them); those closed leave the list.
+    fn close_drained(&mut self) {
+        if self.retiring.is_empty() {
+            return;
+        }
+        let mut keys = std::mem::take(&mut self.retiring);
+        keys.retain(|&key| {
+            let Some(slot) = self.slots.get(key).filter(|s| s.retiring) else {
+                return false;
+            };
+            let id = slot.driver.interface();
+            if slot.driver.idle() {
+                self.engine.close_if_drained(id);
+            }
+            self.engine.is_retiring(id)
+        });
+        self.retiring.append(&mut keys);
+    }
+
+    /// Closes every retiring interface now, what they had queued dropped (a reload
+    /// opens an interface on a port one of them still holds).
+    fn close_retiring(&mut self, now: Timestamp) {
+        for key in std::mem::take(&mut self.retiring) {
+            if let Some(slot) = self.slots.get(key).filter(|s| s.retiring) {
+                self.engine.close_retiring(slot.driver.interface());
+            }
+        }
+        // Their slots leave the loop before any interface number is used again.
+        self.handle_notices(now);
     }
 
     /// Sends what the drivers with something to send can send now — the interfaces the
@@ -646,7 +702,7 @@ impl Runtime {
                             } else if signal == SIGHUP {
                                 reload = true;
                             } else if stop_by.is_none() {
-                                stop_by = Some(now + SHUTDOWN_FLUSH);
+                                stop_by = Some(now + CLOSE_FLUSH);
                                 self.stop_reading();
                                 // The stop request goes out with the last frames.
                                 self.engine.stop_flight_log(now);
@@ -703,6 +759,7 @@ impl Runtime {
             self.record();
             self.write_flight_log();
             self.flush_ready(now);
+            self.close_drained();
             self.handle_notices(now);
             self.arm_timer(now);
             self.logger.flush();
@@ -903,6 +960,7 @@ fn start(
         slot_of: Vec::new(),
         readable: VecDeque::new(),
         to_flush: Vec::new(),
+        retiring: Vec::new(),
         opening: Vec::new(),
         woken: Vec::new(),
         timer,

@@ -81,6 +81,10 @@ pub use messages::SystemSet;
 /// How often learned addresses are expired and idle datagram links removed.
 pub const TICK: Duration = Duration::from_secs(1);
 
+/// How long an interface may still send what was queued for it once it is to close: at
+/// shutdown (SIGINT, SIGTERM), and when a reload removes or reopens it.
+pub const CLOSE_FLUSH: Duration = Duration::from_secs(1);
+
 /// How long a TCP client may be down before what was queued for it meanwhile is dropped
 /// rather than sent when it reconnects: telemetry seconds old misleads a ground station,
 /// and a command nobody saw being sent should not fire minutes later.
@@ -179,14 +183,18 @@ impl Core {
 }
 
 /// The next deadline of interface `i`: its held-back bytes turning stale (while open),
-/// the packet its pacer holds back, or its next reopen attempt.
+/// the packet its pacer holds back, its next reopen attempt, or the time it closes after
+/// a reload removed it.
 fn next_deadline(i: &Interface) -> Option<Timestamp> {
     let stale = i
         .is_open()
         .then(|| i.tail.deadline(i.parser.pending_len()))
         .flatten();
     let retry = i.connection().and_then(Connection::retry_at);
-    [stale, i.pace_deadline, retry].into_iter().flatten().min()
+    [stale, i.pace_deadline, retry, i.retiring]
+        .into_iter()
+        .flatten()
+        .min()
 }
 
 impl Engine {

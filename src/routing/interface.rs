@@ -180,6 +180,9 @@ pub struct LiveInterface {
     pub signing: Option<Edge>,
     /// Its `group` (redundant paths to one vehicle), if it has one; its links take it.
     pub group: Option<GroupId>,
+    /// When it is closed at the latest, once a reload removed it: until then it reads
+    /// nothing and sends what was queued for it (see `Engine::configure`).
+    pub retiring: Option<Timestamp>,
 }
 
 impl LiveInterface {
@@ -198,6 +201,7 @@ impl LiveInterface {
             kind,
             signing: None,
             group: None,
+            retiring: None,
         }
     }
 

@@ -54,7 +54,9 @@ pub(crate) mod stale;
 pub use crate::time::Timestamp;
 pub use counters::{InterfaceReport, LinkCounters, LinkReport};
 pub use dispatch::Decision;
-pub use engine::{Engine, FORGET_AFTER, Reconfigured, Request, SEND_TURN, SystemSet, Transmit};
+pub use engine::{
+    CLOSE_FLUSH, Engine, FORGET_AFTER, Reconfigured, Request, SEND_TURN, SystemSet, Transmit,
+};
 pub use event::{Event, LinkRef, PacketSummary};
 pub use interface::InterfaceId;
 pub use link::{GroupId, Link, LinkId, LinkKind};

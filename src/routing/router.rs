@@ -121,6 +121,9 @@ pub struct Router {
     redundancy: Redundancy,
     /// Sent packets no one else holds, kept to carry the next frames of their lengths.
     spare: Vec<Packet>,
+    /// Links of interfaces a reload removed, sending what was queued for them before
+    /// they close ([`Router::retire_link`]): offered no packet, known to no system.
+    retired: Vec<Link>,
 }
 
 impl Router {
@@ -145,6 +148,7 @@ impl Router {
             by_system: vec![Vec::new(); 256],
             systems_generation: 0,
             spare: Vec::new(),
+            retired: Vec::new(),
         }
     }
 
@@ -274,7 +278,12 @@ impl Router {
     /// there is no such link.
     pub(crate) fn remove_link(&mut self, id: LinkId) -> bool {
         let Some(i) = self.index(id) else {
-            return false;
+            let Some(r) = self.retired.iter().position(|l| l.id() == id) else {
+                return false;
+            };
+            let link = self.retired.swap_remove(r);
+            self.queued_bytes -= link.queue.bytes();
+            return true;
         };
         let link = self.links.remove(i);
         self.ids.remove(i);
@@ -284,18 +293,35 @@ impl Router {
         true
     }
 
+    /// Takes link `id` out of routing while what is queued for it is still sent (its
+    /// interface was removed by a reload): no packet is offered to it any more and the
+    /// addresses it learned are forgotten, but [`Router::peek`], [`Router::pop`] and its
+    /// counters work until [`Router::remove_link`]. Returns false if there is no such
+    /// link in routing.
+    pub(crate) fn retire_link(&mut self, id: LinkId) -> bool {
+        let Some(i) = self.index(id) else {
+            return false;
+        };
+        let link = self.links.remove(i);
+        self.ids.remove(i);
+        self.unindex(&[id]);
+        self.retired.push(link);
+        true
+    }
+
     /// Drops everything queued for link `id` (counted as dropped), e.g. telemetry that
     /// went stale while its connection was down. Returns how many packets were dropped.
     pub(crate) fn clear_queue(&mut self, id: LinkId) -> u64 {
-        let Some(i) = self.index(id) else {
+        let Some(link) = self.link_mut(id) else {
             return 0;
         };
-        let queue = &mut self.links[i].queue;
-        let mut n = 0;
+        let queue = &mut link.queue;
+        let (mut n, mut freed) = (0, 0);
         while queue.bytes() > 0 {
-            self.queued_bytes -= queue.drop_lowest();
+            freed += queue.drop_lowest();
             n += 1;
         }
+        self.queued_bytes -= freed;
         n
     }
 
@@ -304,9 +330,20 @@ impl Router {
         self.ids.binary_search(&id).ok()
     }
 
-    /// The link `id`, if it exists.
+    /// The link `id`, if it exists (retired links too).
     pub fn link(&self, id: LinkId) -> Option<&Link> {
-        self.index(id).map(|i| &self.links[i])
+        match self.index(id) {
+            Some(i) => Some(&self.links[i]),
+            None => self.retired.iter().find(|l| l.id() == id),
+        }
+    }
+
+    /// The link `id`, mutable, if it exists (retired links too).
+    fn link_mut(&mut self, id: LinkId) -> Option<&mut Link> {
+        match self.index(id) {
+            Some(i) => Some(&mut self.links[i]),
+            None => self.retired.iter_mut().find(|l| l.id() == id),
+        }
     }
 
     /// Every link in creation order.
@@ -528,8 +565,7 @@ impl Router {
 
     /// The counters of link `id`, to note what its transport did.
     pub(crate) fn counters_mut(&mut self, id: LinkId) -> Option<&mut LinkCounters> {
-        let i = self.index(id)?;
-        Some(&mut self.links[i].counters)
+        Some(&mut self.link_mut(id)?.counters)
     }
 
     /// Bytes held by all queues together (see [`RouterOptions::total_queue_capacity`]).
@@ -544,8 +580,7 @@ impl Router {
 
     /// Removes and returns the next packet link `id` should send.
     pub fn pop(&mut self, id: LinkId) -> Option<Packet> {
-        let i = self.index(id)?;
-        let packet = self.links[i].queue.pop()?;
+        let packet = self.link_mut(id)?.queue.pop()?;
         self.queued_bytes -= PacketQueue::cost_of(&packet);
         Some(packet)
     }

@@ -428,6 +428,130 @@ fn interfaces_open_close_and_change_in_place() {
     assert_eq!(learned, 1, "the receiver was learned again");
 }
 
+/// Numbered frames from `sys` already waiting on `sock` (read without waiting: on
+/// 127.0.0.1 a datagram is there once its sender's call returned).
+fn numbered_waiting(sock: &UdpSocket, sys: u8) -> Vec<u32> {
+    sock.set_nonblocking(true).expect("non-blocking");
+    let mut got = Vec::new();
+    let mut buf = [0u8; 2048];
+    while let Ok(n) = sock.recv(&mut buf) {
+        let mut parser = Parser::new();
+        parser.feed(&buf[..n], |f| {
+            if f.message_id() == 30 && f.source().system == sys {
+                got.push(number_of(f.as_bytes()));
+            }
+        });
+    }
+    sock.set_nonblocking(false).expect("blocking");
+    got
+}
+
+/// A removed interface sends what was queued for it before it closes, for at most a
+/// second: a paced one whose queue takes 0.4 s delivers all of it; one whose queue
+/// would take 4 s delivers what fits and says how many frames it dropped. Neither takes
+/// a frame that arrives after the reload, and both ports are free afterwards.
+#[test]
+fn a_removed_interface_sends_its_queue_for_at_most_a_second() {
+    let s = Scratch::new("reload-flush");
+    let (a_port, b_port, c_port) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let rules = "default_action accept;\n";
+    let a = format!("udp {{ port {a_port}; address 127.0.0.1; }}\n");
+    // 8,000 bit/s: 25 frames of 40 bytes a second; 800 bit/s: 2.5.
+    let b = format!("udp {{ port {b_port}; address 127.0.0.1; max_bitrate 8000; }}\n");
+    let c = format!("udp {{ port {c_port}; address 127.0.0.1; max_bitrate 800; }}\n");
+    let mut router = Router::start(&s, &format!("{a}{b}{c}{rules}"), 3);
+    let sender = udp_peer(&mut router, a_port, 1);
+    let fast = udp_peer(&mut router, b_port, 2);
+    let slow = udp_peer(&mut router, c_port, 3);
+    for n in 0..10 {
+        sender.send(&numbered(1, n)).expect("send");
+    }
+    // Every frame is queued for both (the router said so) before the reload.
+    for _ in 0..20 {
+        router.wait_for("accepted ATTITUDE (#30) from 1.1");
+    }
+    let line = reload(&mut router, &format!("{a}{rules}"));
+    assert!(line.ends_with("+0 interfaces, -2, 0 changed"), "{line}");
+    sender.send(&numbered(1, 100)).expect("send");
+    let removed = |port: u16| {
+        router
+            .err
+            .seen
+            .iter()
+            .find(|l| l.contains(&format!("udp 127.0.0.1:{port} removed")))
+            .cloned()
+            .unwrap_or_default()
+    };
+    assert!(
+        removed(b_port).contains(" queued frames are sent)"),
+        "{:?}",
+        router.err.seen
+    );
+    assert!(removed(c_port).contains(" queued frames are sent)"));
+
+    eventually("the fast one's port is free", 5 * SECOND, || {
+        !udp_port_bound(b_port)
+    });
+    assert_eq!(
+        numbered_waiting(&fast, 1),
+        (0..10).collect::<Vec<u32>>(),
+        "all it had queued, nothing routed after the reload"
+    );
+    let warning = router
+        .err
+        .wait_for(&format!("udp 127.0.0.1:{c_port} closed: "), 5 * SECOND);
+    assert!(warning.ends_with(" queued frames dropped"), "{warning}");
+    eventually("the slow one's port is free", 5 * SECOND, || {
+        !udp_port_bound(c_port)
+    });
+    let got = numbered_waiting(&slow, 1);
+    assert!(
+        got.len() < 10 && got.iter().copied().eq(0..got.len() as u32),
+        "the slow one sent a part, in order: {got:?}"
+    );
+    router.stop();
+}
+
+/// A reload that reopens a socket on the port it holds while it still sends its queue
+/// (here: its address written out) closes the old one at once, what it had queued
+/// dropped and said, and opens the new one: the port is not lost to the reload.
+#[test]
+fn a_reopened_socket_takes_its_port_from_the_retiring_one() {
+    let s = Scratch::new("reload-reopen-port");
+    let (a_port, b_port) = (free_udp_port(), free_udp_port());
+    let rules = "default_action accept;\n";
+    let a = format!("udp {{ port {a_port}; address 127.0.0.1; }}\n");
+    // 800 bit/s: ten frames of 40 bytes take four seconds.
+    let b = format!("udp {{ port {b_port}; max_bitrate 800; }}\n");
+    let b_again = format!("udp {{ port {b_port}; address 0.0.0.0; max_bitrate 800; }}\n");
+    let mut router = Router::start(&s, &format!("{a}{b}{rules}"), 3);
+    let sender = udp_peer(&mut router, a_port, 1);
+    let _receiver = udp_peer(&mut router, b_port, 2);
+    for n in 0..10 {
+        sender.send(&numbered(1, n)).expect("send");
+    }
+    for _ in 0..10 {
+        router.wait_for("accepted ATTITUDE (#30) from 1.1");
+    }
+    let line = reload(&mut router, &format!("{a}{b_again}{rules}"));
+    assert!(line.ends_with("+0 interfaces, -0, 1 changed"), "{line}");
+    let said = router.err.seen.join("\n");
+    assert!(
+        said.contains(&format!("udp 0.0.0.0:{b_port} reopened")),
+        "{said}"
+    );
+    assert!(
+        said.contains(&format!("udp 0.0.0.0:{b_port} closed: ")),
+        "the retiring socket was closed for the new one: {said}"
+    );
+    assert!(!said.contains("cannot open"), "{said}");
+    // The new socket routes: a peer that joins it gets what the sender says.
+    let receiver = udp_peer(&mut router, b_port, 2);
+    sender.send(&attitude(1, 7)).expect("send");
+    expect_frame(&receiver, &attitude(1, 7));
+    router.stop();
+}
+
 /// A serial port whose `baudrate` changes is reopened (its device opened again, said in
 /// the log) and routes as before, while the UDP interface beside it keeps its socket;
 /// a serial port left as it was is not touched.

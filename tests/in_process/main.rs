@@ -31,6 +31,7 @@ mod routing_flight_log;
 mod routing_queues_props;
 mod routing_ready;
 mod routing_redundancy;
+mod routing_reload;
 mod routing_scenarios;
 mod routing_signing;
 mod wire_properties;

@@ -30,15 +30,20 @@ pub fn addr(s: &str) -> Address {
 /// A full-length MAVLink 2 frame of message `name` from `from`, with its target fields
 /// set to `to` (0.0 when `None` and the message has target fields).
 pub fn frame(name: &str, from: &str, to: Option<&str>) -> Vec<u8> {
-    build(name, from, to, 2)
+    build(name, from, to, 2, 0)
+}
+
+/// [`frame`] with sequence number `seq` (frames that differ only in it).
+pub fn frame_seq(name: &str, from: &str, to: Option<&str>, seq: u8) -> Vec<u8> {
+    build(name, from, to, 2, seq)
 }
 
 /// A MAVLink 1 frame of message `name` from `from`, with its target fields set to `to`.
 pub fn frame_v1(name: &str, from: &str, to: Option<&str>) -> Vec<u8> {
-    build(name, from, to, 1)
+    build(name, from, to, 1, 0)
 }
 
-fn build(name: &str, from: &str, to: Option<&str>, version: u8) -> Vec<u8> {
+fn build(name: &str, from: &str, to: Option<&str>, version: u8, seq: u8) -> Vec<u8> {
     let info = dialect::by_name(name).unwrap_or_else(|| panic!("no message {name}"));
     // Non-zero filler keeps MAVLink 2 frames at full length (no trailing-zero truncation).
     let mut payload = vec![0x55u8; info.max_len as usize];
@@ -54,7 +59,7 @@ fn build(name: &str, from: &str, to: Option<&str>, version: u8) -> Vec<u8> {
     }
     let src = addr(from);
     let header = Header {
-        seq: 0,
+        seq,
         system: src.system,
         component: src.component,
     };

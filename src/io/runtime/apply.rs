@@ -95,6 +95,24 @@ impl Runtime {
         }
     }
 
+    /// The driver for the core's new interface `id`, of block `iface` (see
+    /// [`driver_for`]). A port still held by an interface the reload removed, which is
+    /// sending its queue, is freed: the retiring interfaces close now.
+    fn make_driver(
+        &mut self,
+        iface: &Interface,
+        id: InterfaceId,
+        now: Timestamp,
+    ) -> io::Result<Box<dyn Driver>> {
+        match driver_for(iface, id, &self.waker) {
+            Err(e) if e.kind() == io::ErrorKind::AddrInUse && !self.retiring.is_empty() => {
+                self.close_retiring(now);
+                driver_for(iface, id, &self.waker)
+            }
+            made => made,
+        }
+    }
+
     /// Runs `file` from now on: the core keeps what did not change and names what the
     /// loop closes and opens.
     fn apply(&mut self, file: FromFile, now: Timestamp) {
@@ -106,7 +124,8 @@ impl Runtime {
         for request in std::mem::take(&mut done.requests) {
             match request {
                 Request::Close(id) => self.remove(id),
-                Request::Open(id, iface) => match driver_for(&iface, id, &self.waker) {
+                Request::Retire(id) => self.retire(id),
+                Request::Open(id, iface) => match self.make_driver(&iface, id, now) {
                     Ok(driver) => self.add(driver, false),
                     Err(e) => {
                         log::error(&format_args!(

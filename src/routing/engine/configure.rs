@@ -8,7 +8,7 @@ use std::fmt;
 use super::{Engine, Notice};
 use crate::config::{Config, Interface, PeerLimits};
 use crate::filter::FilterCounts;
-use crate::routing::interface::{InterfaceId, Kind, pacer_for};
+use crate::routing::interface::{InterfaceId, Kind, LiveInterface, pacer_for};
 use crate::routing::reload::{self, Fate, InPlace, Keyed, RulePlan};
 use crate::routing::snapshot::RuleBook;
 use crate::routing::{LinkId, RouterOptions, Timestamp};
@@ -29,12 +29,22 @@ impl Configured {
 }
 
 /// What the event loop must do after [`Engine::configure`], in the order given (every
-/// close comes before every open: a port or device may move from an old block to a new
-/// one, and an interface number may be used again).
+/// close and retire comes before every open: a port or device may move from an old block
+/// to a new one, and an interface number may be used again). A retiring driver still
+/// holds its port: if an open finds it taken, close the retiring ones
+/// ([`Engine::close_retiring`]) and try again.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Request {
     /// Close the driver of this interface (the core has forgotten it).
     Close(InterfaceId),
+    /// Stop reading the driver of this interface, but go on flushing it: it sends what
+    /// was queued for it (its links take no new packets), for at most [`CLOSE_FLUSH`].
+    /// Close it when the core says so ([`Notice::Closed`]): once
+    /// [`Engine::close_if_drained`], asked whenever its driver has nothing in flight,
+    /// finds nothing left, or when the time is up.
+    ///
+    /// [`CLOSE_FLUSH`]: super::CLOSE_FLUSH
+    Retire(InterfaceId),
     /// Make a driver for this new interface from its block. Servers bind at once;
     /// clients and serial ports are opened when the core asks ([`Notice::Open`]). If it
     /// cannot be made, tell the core with [`Engine::unconfigure`].
@@ -166,8 +176,12 @@ impl Engine {
     /// - interfaces are matched by identity (`reload::plan_interfaces`): an unchanged
     ///   one keeps its links, queues, learned addresses, connections, signing streams and
     ///   counters; `max_bitrate`, the signing settings and the server limits change in
-    ///   place; a removed or reopened one is forgotten with its links (what was queued
-    ///   for them is dropped and counted in [`Reconfigured::dropped`]);
+    ///   place; a removed or reopened one leaves routing with its links at once, and is
+    ///   closed once what was queued for it was sent, within [`CLOSE_FLUSH`]
+    ///   ([`Request::Retire`]; a stream that is down, and a server socket, close at once,
+    ///   and what could not be sent is dropped and counted);
+    ///
+    /// [`CLOSE_FLUSH`]: super::CLOSE_FLUSH
     /// - new queue bounds apply to every queue at once.
     ///
     /// At start, call it once after [`Engine::new`] with the same configuration.
@@ -232,9 +246,9 @@ impl Engine {
         for &o in &plan.removed {
             let id = self.configured[o].id;
             let label = self.describe(id);
-            let dropped = self.forget_interface(id, &mut done.requests);
+            let (dropped, sending) = self.retire_interface(id, now, &mut done.requests);
             done.details
-                .push(format!("{label} removed{}", dropped_text(dropped)));
+                .push(format!("{label} removed{}", closing_text(dropped, sending)));
             done.dropped += dropped;
             done.removed += 1;
         }
@@ -257,11 +271,11 @@ impl Engine {
                 }
                 Fate::Reopened => {
                     let label = self.describe(id);
-                    let dropped = self.forget_interface(id, &mut done.requests);
+                    let (dropped, sending) = self.retire_interface(id, now, &mut done.requests);
                     reopened.push((m.new, done.details.len(), label.clone()));
                     done.details.push(format!(
                         "{label} reopened: a setting of its socket or device changed{}",
-                        dropped_text(dropped)
+                        closing_text(dropped, sending)
                     ));
                     done.dropped += dropped;
                     done.changed += 1;
@@ -510,43 +524,141 @@ impl Engine {
         family
     }
 
-    /// Removes interface `id` (with the connections of a server) and its links; asks the
-    /// loop to close each. Returns how many queued frames were dropped.
-    fn forget_interface(&mut self, id: InterfaceId, requests: &mut Vec<Request>) -> u64 {
-        let mut dropped = 0;
+    /// Takes interface `id` (with the connections of a server) out of routing, asking
+    /// the loop to close each: at once where it has nothing queued it can send (a
+    /// server socket, a stream that is down: what was queued for it is dropped), else
+    /// once that was sent, by `now` + [`CLOSE_FLUSH`] at the latest ([`Request::Retire`]).
+    /// Returns how many queued frames were dropped now and how many are being sent.
+    ///
+    /// [`CLOSE_FLUSH`]: super::CLOSE_FLUSH
+    fn retire_interface(
+        &mut self,
+        id: InterfaceId,
+        now: Timestamp,
+        requests: &mut Vec<Request>,
+    ) -> (u64, usize) {
+        let (mut dropped, mut sending) = (0, 0);
         for member in self.family(id) {
-            let Some(interface) = self.interfaces.try_remove(member.0) else {
+            if self.is_idle(member) {
+                dropped += self.forget_member(member, requests);
+                continue;
+            }
+            let Some(interface) = self.interfaces.get_mut(member.0) else {
                 continue;
             };
-            let links: Vec<(LinkId, String)> = match &interface.kind {
-                Kind::Datagram { remotes, .. } => {
-                    remotes.iter().map(|(l, a)| (l, a.to_string())).collect()
-                }
-                Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
-                    vec![(*link, interface.label.clone())]
-                }
-                Kind::Listener { .. } => Vec::new(),
-            };
-            for (link, name) in links {
-                dropped += self.core.router.clear_queue(link);
-                self.core.router.remove_link(link);
-                self.owner.remove(&link);
+            interface.retiring = Some(now + super::CLOSE_FLUSH);
+            interface.parser.clear();
+            // Its server is closing: the number may soon be another interface's.
+            if let Kind::Stream { accepted_by, .. } = &mut interface.kind {
+                *accepted_by = None;
+            }
+            for (link, name) in links_of(interface) {
+                sending += self.core.router.link(link).map_or(0, |l| l.queue.len());
+                self.core.router.retire_link(link);
                 self.core
                     .notices
                     .push_back(Notice::LinkRemoved { id: link, name });
             }
             self.refresh_deadline(member);
-            requests.push(Request::Close(member));
+            self.mark_ready(member);
+            requests.push(Request::Retire(member));
         }
+        (dropped, sending)
+    }
+
+    /// True while interface `id` sends what was queued for it before it closes
+    /// ([`Request::Retire`]).
+    pub fn is_retiring(&self, id: InterfaceId) -> bool {
+        self.interfaces
+            .get(id.0)
+            .is_some_and(|i| i.retiring.is_some())
+    }
+
+    /// Closes retiring interface `id` ([`Request::Retire`]) if nothing is queued for it
+    /// any more: ask whenever its driver has nothing in flight. [`Notice::Closed`]
+    /// follows when it closes.
+    pub fn close_if_drained(&mut self, id: InterfaceId) {
+        if self.is_retiring(id) && self.is_idle(id) {
+            self.close_retiring(id);
+        }
+    }
+
+    /// Closes retiring interface `id` ([`Request::Retire`]) now: its time is up, its
+    /// stream was lost, or its port is wanted by an interface a reload opens. What is
+    /// still queued for it is dropped, counted and said; [`Notice::Closed`] follows.
+    pub fn close_retiring(&mut self, id: InterfaceId) {
+        self.settle_direct();
+        if !self.is_retiring(id) {
+            return;
+        }
+        let described = self.describe(id);
+        let dropped = self.forget_member(id, &mut Vec::new());
+        self.core.notices.push_back(Notice::Closed(id));
+        if dropped > 0 {
+            let frames = if dropped == 1 { "frame" } else { "frames" };
+            self.core.notices.push_back(Notice::Warning(format!(
+                "{described} closed: {dropped} queued {frames} dropped"
+            )));
+        }
+    }
+
+    /// Removes interface `id` (with the connections of a server) and its links at once;
+    /// asks the loop to close each. Returns how many queued frames were dropped.
+    fn forget_interface(&mut self, id: InterfaceId, requests: &mut Vec<Request>) -> u64 {
+        self.family(id)
+            .into_iter()
+            .map(|member| self.forget_member(member, requests))
+            .sum()
+    }
+
+    /// Removes interface `id` alone and its links; asks the loop to close it. Returns
+    /// how many queued frames were dropped.
+    fn forget_member(&mut self, id: InterfaceId, requests: &mut Vec<Request>) -> u64 {
+        let mut dropped = 0;
+        let Some(interface) = self.interfaces.try_remove(id.0) else {
+            return 0;
+        };
+        for (link, name) in links_of(&interface) {
+            dropped += self.core.router.clear_queue(link);
+            self.core.router.remove_link(link);
+            self.owner.remove(&link);
+            // A retiring interface's links left routing (and were said gone) before.
+            if interface.retiring.is_none() {
+                self.core
+                    .notices
+                    .push_back(Notice::LinkRemoved { id: link, name });
+            }
+        }
+        self.refresh_deadline(id);
+        requests.push(Request::Close(id));
         dropped
     }
 }
 
-fn dropped_text(dropped: u64) -> String {
-    if dropped == 0 {
-        String::new()
-    } else {
-        format!(" ({dropped} queued frames dropped)")
+/// The links of `interface`, with their names.
+fn links_of(interface: &LiveInterface) -> Vec<(LinkId, String)> {
+    match &interface.kind {
+        Kind::Datagram { remotes, .. } => remotes.iter().map(|(l, a)| (l, a.to_string())).collect(),
+        Kind::Stream { link, .. } | Kind::DatagramClient { link, .. } => {
+            vec![(*link, interface.label.clone())]
+        }
+        Kind::Listener { .. } => Vec::new(),
+    }
+}
+
+/// What a detail line says of the queue of an interface a reload closes: `dropped`
+/// frames dropped now, `sending` frames sent before it closes.
+fn closing_text(dropped: u64, sending: usize) -> String {
+    let sent = match sending {
+        0 => String::new(),
+        1 => "closed once its 1 queued frame is sent".to_string(),
+        n => format!("closed once its {n} queued frames are sent"),
+    };
+    match (dropped, sent.is_empty()) {
+        (0, true) => String::new(),
+        (d, true) => format!(" ({d} queued frames dropped)"),
+        (0, false) => format!(" ({sent})"),
+        (d, false) => format!(" ({d} queued frames dropped; {sent})"),
     }
 }
 
@@ -601,7 +713,7 @@ mod tests {
         (done.requests.iter())
             .filter_map(|r| match r {
                 Request::Open(id, _) => Some(*id),
-                Request::Close(_) => None,
+                Request::Close(_) | Request::Retire(_) => None,
             })
             .collect()
     }
@@ -631,12 +743,17 @@ mod tests {
         .expect("config")
         .config;
         let done = e.configure(&new, &[], T0);
-        assert_eq!(done.requests, [Request::Close(a)]);
+        // `a` sends the heartbeat queued for peer 1 before it closes.
+        assert_eq!(done.requests, [Request::Retire(a)]);
         assert_eq!((done.added, done.removed, done.changed), (0, 1, 1));
-        assert_eq!(done.dropped, 1, "the heartbeat queued for peer 1");
+        assert_eq!(done.dropped, 0);
+        assert_eq!(
+            done.details[0],
+            "udp 0.0.0.0:14550 removed (closed once its 1 queued frame is sent)"
+        );
         assert_eq!(
             done.to_string(),
-            "2 rules (1 changed, 1 removed), +0 interfaces, -1, 1 changed, 1 queued frames dropped"
+            "2 rules (1 changed, 1 removed), +0 interfaces, -1, 1 changed"
         );
         // `b` kept its link, its learned address and its queue; it is paced now.
         let link = e.router().links().next().expect("peer 2's link");
@@ -667,6 +784,13 @@ mod tests {
         // Removing the server closes its connections too.
         let none = load("default_action accept;\n").expect("config").config;
         let done = e.configure(&none, &[], T0);
-        assert_eq!(done.requests.len(), 3, "{:?}", done.requests);
+        assert_eq!(
+            done.requests,
+            [
+                Request::Close(ids[0]),
+                Request::Close(conn),
+                Request::Close(later)
+            ]
+        );
     }
 }

@@ -22,9 +22,11 @@ impl Engine {
             described,
             signing: edge,
             group,
+            retiring: None,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {
+            // Gone, or retiring: a reload removed it.
             return;
         };
         let sender = match kind {
@@ -98,6 +100,7 @@ impl Engine {
             signing: edge,
             described,
             group,
+            retiring: None,
             ..
         }) = self.interfaces.get_mut(id.0)
         else {

@@ -78,6 +78,11 @@ impl Engine {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
+        if interface.retiring.is_some() {
+            // A reload removed it: it is not opened again.
+            self.close_retiring(id);
+            return;
+        }
         interface.parser.clear();
         match &mut interface.kind {
             Kind::Stream {

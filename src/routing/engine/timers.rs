@@ -65,11 +65,16 @@ impl Engine {
     }
 
     /// Runs what is due at `now` on interface `id`: lets the pacer's held-back packet
-    /// go, asks for a reopen, or gives up on held-back bytes.
+    /// go, asks for a reopen, gives up on held-back bytes, or closes an interface a
+    /// reload removed whose queue was not sent in time.
     pub(super) fn handle_interface_timeout(&mut self, id: InterfaceId, now: Timestamp) {
         let Some(interface) = self.interfaces.get_mut(id.0) else {
             return;
         };
+        if interface.retiring.is_some_and(|t| t <= now) {
+            self.close_retiring(id);
+            return;
+        }
         if interface.pace_deadline.is_some_and(|t| t <= now) {
             // The pacer decides afresh when the loop polls for transmits.
             interface.pace_deadline = None;

@@ -1,0 +1,244 @@
+//! A reload that removes or reopens an interface, in the core on a simulated clock: the
+//! interface leaves routing at once (no new packet goes there, nothing it receives is
+//! routed) but sends what was queued for it first, and is closed once that is sent or a
+//! second after the reload, whichever comes first, what is left dropped and said.
+
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use crate::routing;
+
+use mavtables::config;
+use mavtables::routing::{
+    CLOSE_FLUSH, Engine, InterfaceId, Notice, Request, RouterOptions, Timestamp,
+};
+
+fn peer(port: u16) -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], port))
+}
+
+const BOTH: &str = "udp { port 14550; }\nudp { port 14560; }\ndefault_action accept;\n";
+const FIRST: &str = "udp { port 14550; }\ndefault_action accept;\n";
+
+fn load(conf: &str) -> config::Config {
+    config::load(conf).expect("config loads").config
+}
+
+/// The interfaces `requests` opens, in order.
+fn opened(requests: &[Request]) -> Vec<InterfaceId> {
+    requests
+        .iter()
+        .filter_map(|r| match r {
+            Request::Open(id, _) => Some(*id),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The bytes interface `iface` sends at `now`.
+fn sent(e: &mut Engine, iface: InterfaceId, now: Timestamp) -> Vec<Vec<u8>> {
+    let mut queue = VecDeque::new();
+    e.poll_transmit(iface, now, 1024, &mut queue);
+    let frames = queue.iter().map(|t| t.packet.to_vec()).collect();
+    e.on_sent_batch(queue);
+    frames
+}
+
+fn notices(e: &mut Engine) -> Vec<Notice> {
+    std::iter::from_fn(|| e.poll_event()).collect()
+}
+
+/// A core running [`BOTH`]: a vehicle (1.1) behind the first interface, a ground
+/// station (255.190) behind the second, and five frames of the vehicle queued for the
+/// ground station, not sent yet. Returns the core, both interfaces and the frames.
+fn five_queued() -> (Engine, InterfaceId, InterfaceId, Vec<Vec<u8>>) {
+    let config = load(BOTH);
+    let mut e = Engine::new(&config, RouterOptions::default());
+    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
+    let [vehicle, gcs] = opened(&done.requests)[..] else {
+        panic!("two interfaces: {:?}", done.requests);
+    };
+    let now = Timestamp::from_secs(1);
+    e.handle_datagram(
+        gcs,
+        peer(2),
+        &routing::frame("HEARTBEAT", "255.190", None),
+        now,
+    );
+    e.handle_datagram(
+        vehicle,
+        peer(1),
+        &routing::frame("HEARTBEAT", "1.1", None),
+        now,
+    );
+    sent(&mut e, vehicle, now);
+    sent(&mut e, gcs, now);
+    let frames: Vec<Vec<u8>> = (0..5)
+        .map(|n| routing::frame_seq("ATTITUDE", "1.1", None, n))
+        .collect();
+    for f in &frames {
+        e.handle_datagram(vehicle, peer(1), f, now);
+    }
+    notices(&mut e);
+    (e, vehicle, gcs, frames)
+}
+
+#[test]
+fn a_removed_interface_sends_its_queue_then_closes() {
+    let (mut e, vehicle, gcs, frames) = five_queued();
+    let now = Timestamp::from_secs(2);
+    let done = e.configure(&load(FIRST), &[None], now);
+    assert_eq!(done.requests, [Request::Retire(gcs)]);
+    assert_eq!(done.removed, 1);
+    assert_eq!(done.dropped, 0);
+    assert!(
+        done.details[0].ends_with("removed (closed once its 5 queued frames are sent)"),
+        "{:?}",
+        done.details
+    );
+    assert!(e.is_retiring(gcs));
+    assert!(e.poll_timeout() <= now + CLOSE_FLUSH);
+
+    // Out of routing: a new frame of the vehicle is not queued for it, and what it
+    // receives is not routed.
+    e.handle_datagram(
+        vehicle,
+        peer(1),
+        &routing::frame_seq("ATTITUDE", "1.1", None, 9),
+        now,
+    );
+    e.handle_datagram(gcs, peer(2), &routing::frame("PING", "255.190", None), now);
+    assert!(
+        sent(&mut e, vehicle, now).is_empty(),
+        "routed from a removed one"
+    );
+
+    // Still open until its queue is out: exactly the five frames, then it closes.
+    e.close_if_drained(gcs);
+    assert!(e.is_retiring(gcs), "closed with frames still queued");
+    assert_eq!(sent(&mut e, gcs, now), frames);
+    e.close_if_drained(gcs);
+    assert!(!e.is_retiring(gcs));
+    assert!(e.interface(gcs).is_none());
+    let said = notices(&mut e);
+    assert!(said.contains(&Notice::Closed(gcs)), "{said:?}");
+    assert!(
+        !said.iter().any(|n| matches!(n, Notice::Warning(_))),
+        "{said:?}"
+    );
+    // The ground station's link is gone from the router.
+    assert!(e.router().links().all(|l| l.name() != "127.0.0.1:2"));
+}
+
+#[test]
+fn what_is_not_sent_within_a_second_is_dropped_and_said() {
+    let (mut e, _, gcs, _) = five_queued();
+    let now = Timestamp::from_secs(2);
+    e.configure(&load(FIRST), &[None], now);
+    notices(&mut e);
+    // Its driver cannot send (say, a full socket): the time runs out.
+    e.handle_timeout(now + (CLOSE_FLUSH - Duration::from_millis(1)));
+    assert!(e.is_retiring(gcs), "closed before its time");
+    let due = e.poll_timeout();
+    assert_eq!(due, now + CLOSE_FLUSH);
+    e.handle_timeout(due);
+    assert!(!e.is_retiring(gcs));
+    let said = notices(&mut e);
+    assert!(said.contains(&Notice::Closed(gcs)), "{said:?}");
+    assert!(
+        said.contains(&Notice::Warning(
+            "udp 0.0.0.0:14560 closed: 5 queued frames dropped".into()
+        )),
+        "{said:?}"
+    );
+    assert_eq!(
+        e.router().queued_bytes(),
+        0,
+        "the dropped frames' bytes are freed"
+    );
+}
+
+#[test]
+fn a_reopened_interface_retires_the_old_socket_and_opens_a_new_one() {
+    let (mut e, _, gcs, frames) = five_queued();
+    let now = Timestamp::from_secs(2);
+    // Another setting of the socket (the address written out): reopened.
+    let reopened = "udp { port 14550; }\nudp { port 14560; address 0.0.0.0; }\n\
+                    default_action accept;\n";
+    let done = e.configure(&load(reopened), &[None, None], now);
+    let [Request::Retire(old), Request::Open(new, _)] = done.requests[..] else {
+        panic!("{:?}", done.requests);
+    };
+    assert_eq!(old, gcs);
+    assert_ne!(new, gcs, "the new interface has a number of its own");
+    assert_eq!(done.changed, 1);
+    // The loop's driver cannot bind while the old socket holds the port: it closes the
+    // old one at once, what it had queued dropped.
+    e.close_retiring(gcs);
+    assert!(e.interface(gcs).is_none());
+    let said = notices(&mut e);
+    assert!(said.contains(&Notice::Closed(gcs)), "{said:?}");
+    assert!(
+        said.iter().any(|n| matches!(n, Notice::Warning(w)
+            if w.ends_with(&format!("closed: {} queued frames dropped", frames.len())))),
+        "{said:?}"
+    );
+    assert!(e.interface(new).is_some());
+}
+
+#[test]
+fn a_stream_that_is_down_closes_at_once() {
+    let conf = "udp { port 14550; }\ntcp { connect 127.0.0.1:1; }\ndefault_action accept;\n";
+    let config = load(conf);
+    let mut e = Engine::new(&config, RouterOptions::default());
+    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
+    let [_, client] = opened(&done.requests)[..] else {
+        panic!("two interfaces: {:?}", done.requests);
+    };
+    let done = e.configure(&load(FIRST), &[None], Timestamp::from_secs(1));
+    assert_eq!(done.requests, [Request::Close(client)]);
+    assert!(e.interface(client).is_none());
+}
+
+#[test]
+fn a_removed_servers_connections_send_their_queue_and_stay_apart_from_a_new_server() {
+    let conf = "udp { port 14550; }\ntcp { port 5760; }\ndefault_action accept;\n";
+    let config = load(conf);
+    let mut e = Engine::new(&config, RouterOptions::default());
+    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
+    let [vehicle, server] = opened(&done.requests)[..] else {
+        panic!("two interfaces: {:?}", done.requests);
+    };
+    let now = Timestamp::from_secs(1);
+    let conn = e.accept(server, peer(9), now).expect("accepted");
+    let frame = routing::frame("ATTITUDE", "1.1", None);
+    e.handle_datagram(vehicle, peer(1), &frame, now);
+    notices(&mut e);
+
+    let moved = "udp { port 14550; }\ntcp { port 5761; }\ndefault_action accept;\n";
+    let done = e.configure(&load(moved), &[None, None], now);
+    let [
+        Request::Close(closed),
+        Request::Retire(retiring),
+        Request::Open(new_server, _),
+    ] = done.requests[..]
+    else {
+        panic!("{:?}", done.requests);
+    };
+    assert_eq!((closed, retiring), (server, conn));
+    // The new server has the old one's number: the retiring connection is not one of
+    // its connections.
+    assert_eq!(new_server, server);
+    let done = e.configure(
+        &load("udp { port 14550; }\ndefault_action accept;\n"),
+        &[None],
+        now,
+    );
+    assert_eq!(done.requests, [Request::Close(new_server)]);
+    assert!(e.is_retiring(conn));
+    assert!(e.interface(new_server).is_none());
+    assert_eq!(sent(&mut e, conn, now), [frame]);
+    e.close_if_drained(conn);
+    assert!(notices(&mut e).contains(&Notice::Closed(conn)));
+}
