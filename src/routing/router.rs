@@ -331,19 +331,35 @@ impl Router {
     }
 
     /// The link `id`, if it exists (retired links too).
+    #[inline]
     pub fn link(&self, id: LinkId) -> Option<&Link> {
         match self.index(id) {
             Some(i) => Some(&self.links[i]),
-            None => self.retired.iter().find(|l| l.id() == id),
+            None => self.retired(id),
         }
     }
 
     /// The link `id`, mutable, if it exists (retired links too).
+    #[inline]
     fn link_mut(&mut self, id: LinkId) -> Option<&mut Link> {
         match self.index(id) {
             Some(i) => Some(&mut self.links[i]),
-            None => self.retired.iter_mut().find(|l| l.id() == id),
+            None => self.retired_mut(id),
         }
+    }
+
+    /// Retired link `id` (rare: out of the frame's path).
+    #[cold]
+    #[inline(never)]
+    fn retired(&self, id: LinkId) -> Option<&Link> {
+        self.retired.iter().find(|l| l.id() == id)
+    }
+
+    /// Retired link `id`, mutable.
+    #[cold]
+    #[inline(never)]
+    fn retired_mut(&mut self, id: LinkId) -> Option<&mut Link> {
+        self.retired.iter_mut().find(|l| l.id() == id)
     }
 
     /// Every link in creation order.
