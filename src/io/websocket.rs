@@ -9,7 +9,9 @@
 //!   connection stays.
 //! - A message (or frame) over [`MAX_MESSAGE`] bytes, or a handshake not done within
 //!   [`HANDSHAKE_LIMIT`], closes the connection (logged, counted as an I/O error); so
-//!   does a browser's request from an origin the block does not name (answered 403).
+//!   does a browser's request from an origin the block does not name (answered 403),
+//!   and a request that is not a WebSocket upgrade (answered 426, 405 or 400: see
+//!   [`refusal`]).
 //! - Output is taken from the core a few frames at a time, only once what was taken
 //!   before has been written: a client that never reads is held back by the core's
 //!   per-link queue, as a TCP client is; the driver never buffers more.
@@ -18,7 +20,8 @@
 
 use std::collections::VecDeque;
 use std::io;
-use std::net::{SocketAddr, TcpStream};
+use std::io::Write;
+use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::os::fd::{AsRawFd, RawFd};
 use std::sync::Arc;
 use std::time::Duration;
@@ -90,6 +93,43 @@ impl Callback for OriginCheck {
     }
 }
 
+/// The HTTP answer to a request the handshake refused, with its status: 426 (with
+/// `Upgrade: websocket` and the version this server speaks) to a request that is not an
+/// upgrade — a browser opening the port as a page — or asks for another WebSocket
+/// version; 405 to another method; 400 to anything else that is not a valid upgrade
+/// request. `None` when no request was refused (the connection failed or closed, or
+/// the origin check answered already).
+fn refusal(e: &WsError) -> Option<(&'static str, String)> {
+    let (status, headers) = match e {
+        WsError::Protocol(
+            ProtocolError::MissingUpgradeWebSocketHeader
+            | ProtocolError::MissingConnectionUpgradeHeader,
+        ) => (
+            "426 Upgrade Required",
+            "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n",
+        ),
+        WsError::Protocol(ProtocolError::MissingSecWebSocketVersionHeader) => {
+            ("426 Upgrade Required", "Sec-WebSocket-Version: 13\r\n")
+        }
+        WsError::Protocol(ProtocolError::WrongHttpMethod) => {
+            ("405 Method Not Allowed", "Allow: GET\r\n")
+        }
+        WsError::Io(_) | WsError::ConnectionClosed | WsError::AlreadyClosed | WsError::Http(_) => {
+            return None;
+        }
+        _ => ("400 Bad Request", ""),
+    };
+    let body = "This port speaks WebSocket: MAVLink frames in binary messages.\n";
+    Some((
+        status,
+        format!(
+            "HTTP/1.1 {status}\r\n{headers}Content-Type: text/plain\r\nContent-Length: {}\r\n\
+             Connection: close\r\n\r\n{body}",
+            body.len()
+        ),
+    ))
+}
+
 fn ws_config() -> WebSocketConfig {
     WebSocketConfig::default()
         // Read in chunks of a few pages; MAVLink frames are small.
@@ -126,6 +166,10 @@ pub struct WebSocketDriver {
     failed: Option<io::Error>,
     /// Scratch for [`Engine::poll_transmit`].
     next: VecDeque<Transmit>,
+    /// A second handle on the socket while the handshake runs: tungstenite takes the
+    /// stream and answers only what the origin check refuses, so the HTTP error for
+    /// any other refused request goes out through this one.
+    answer: Option<TcpStream>,
 }
 
 impl WebSocketDriver {
@@ -144,6 +188,7 @@ impl WebSocketDriver {
             unflushed: false,
             failed: None,
             next: VecDeque::with_capacity(FRAMES_PER_WRITE),
+            answer: None,
         }
     }
 
@@ -152,6 +197,7 @@ impl WebSocketDriver {
     fn handshake(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         let result = match std::mem::replace(&mut self.state, State::Gone) {
             State::Accepted(stream, check) => {
+                self.answer = stream.try_clone().ok();
                 tungstenite::accept_hdr_with_config(stream, check, Some(ws_config()))
             }
             State::Handshake(mid) => mid.handshake(),
@@ -164,6 +210,7 @@ impl WebSocketDriver {
             Ok(ws) => {
                 self.state = State::Open(ws);
                 self.deadline = None;
+                self.answer = None;
                 // What the core queued for it can go now; messages may have come
                 // with the request.
                 engine.stream_opened(self.interface, now);
@@ -180,17 +227,29 @@ impl WebSocketDriver {
                     "WebSocket handshake refused: the page's origin is not one the block allows";
                 self.lose(engine, now, Some(why.to_string()))
             }
-            Err(HandshakeError::Failure(e)) => self.lose(
-                engine,
-                now,
-                Some(format!("WebSocket handshake failed: {e}")),
-            ),
+            Err(HandshakeError::Failure(e)) => {
+                let answered = match (self.answer.take(), refusal(&e)) {
+                    (Some(mut answer), Some((status, text))) => {
+                        // A few hundred bytes into an empty send buffer; then the end.
+                        let _ = answer.write_all(text.as_bytes());
+                        let _ = answer.shutdown(Shutdown::Write);
+                        format!(" (answered {status})")
+                    }
+                    _ => String::new(),
+                };
+                self.lose(
+                    engine,
+                    now,
+                    Some(format!("WebSocket handshake failed: {e}{answered}")),
+                )
+            }
         }
     }
 
     /// Reports the connection lost: an error (logged and counted) or a normal end.
     fn lose(&mut self, engine: &mut Engine, now: Timestamp, error: Option<String>) -> Progress {
         self.state = State::Gone;
+        self.answer = None;
         match error {
             Some(why) => {
                 engine.on_receive_failed(self.interface, &io::Error::other(why.clone()));
@@ -263,6 +322,7 @@ impl Driver for WebSocketDriver {
 
     fn close(&mut self) {
         self.state = State::Gone;
+        self.answer = None;
         self.deadline = None;
         self.unflushed = false;
         self.failed = None;

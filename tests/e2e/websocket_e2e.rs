@@ -317,6 +317,67 @@ fn a_connection_without_a_handshake_is_closed_after_5_s() {
     router.stop();
 }
 
+/// What the router answers to `request` on its WebSocket port `port`: everything it
+/// wrote until it closed the connection (at most 5 s).
+fn answer_to(port: u16, request: &str) -> String {
+    let mut c = connect(&format!("127.0.0.1:{port}"));
+    c.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+    c.write_all(request.as_bytes()).expect("write");
+    let mut answer = String::new();
+    let _ = c.read_to_string(&mut answer);
+    answer
+}
+
+/// A request that is not a WebSocket upgrade gets an HTTP answer that says why, not a
+/// bare close: 426 naming the upgrade to a plain GET (a browser opening the port as a
+/// page), 426 naming version 13 to another WebSocket version, 405 to another method,
+/// 400 to what is not HTTP. Each is logged; the port still takes real clients.
+#[test]
+fn a_request_that_is_not_an_upgrade_is_answered() {
+    let s = Scratch::new("ws-refusals");
+    let (mut router, _, port) = router(&s, "", "");
+    let page = answer_to(port, "GET / HTTP/1.1\r\nHost: x\r\n\r\n");
+    assert!(
+        page.starts_with("HTTP/1.1 426 Upgrade Required\r\n"),
+        "{page:?}"
+    );
+    assert!(page.contains("\r\nUpgrade: websocket\r\n"), "{page:?}");
+    assert!(
+        page.ends_with("MAVLink frames in binary messages.\n"),
+        "{page:?}"
+    );
+    router
+        .err
+        .wait_for("WebSocket handshake failed: ", 5 * SECOND);
+    let version = answer_to(
+        port,
+        "GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 8\r\n\r\n",
+    );
+    assert!(version.starts_with("HTTP/1.1 426 "), "{version:?}");
+    assert!(
+        version.contains("\r\nSec-WebSocket-Version: 13\r\n"),
+        "{version:?}"
+    );
+    let post = answer_to(
+        port,
+        "POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n\r\n",
+    );
+    assert!(
+        post.starts_with("HTTP/1.1 405 Method Not Allowed\r\n"),
+        "{post:?}"
+    );
+    assert!(post.contains("\r\nAllow: GET\r\n"), "{post:?}");
+    let junk = answer_to(port, "hello\r\n\r\n");
+    assert!(junk.starts_with("HTTP/1.1 400 Bad Request\r\n"), "{junk:?}");
+    let line = router
+        .err
+        .wait_for("(answered 400 Bad Request)", 5 * SECOND);
+    assert!(line.contains("WebSocket handshake failed: "), "{line}");
+    let _client = ws_join(&mut router, port, 5);
+    router.stop();
+}
+
 /// A client handshaking with `origin` as its `Origin` header (None: without one).
 fn ws_client_from(port: u16, origin: Option<&str>) -> tungstenite::Result<Client> {
     ws_client_with_origins(port, origin.as_slice())
