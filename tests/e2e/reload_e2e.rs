@@ -446,6 +446,28 @@ fn numbered_waiting(sock: &UdpSocket, sys: u8) -> Vec<u32> {
     got
 }
 
+/// A router (logging every decision) with blocks `a` and `b` (UDP servers on ports
+/// `ports`), a sender (system 1) on `a`, a receiver (system 2) on `b`, and `n` numbered
+/// frames of the sender that the router has queued for the receiver.
+fn queued_for_b(
+    s: &Scratch,
+    [a, b]: [&str; 2],
+    [a_port, b_port]: [u16; 2],
+    n: u32,
+) -> (Router, UdpSocket, UdpSocket) {
+    let mut router = Router::start(s, &format!("{a}{b}default_action accept;\n"), 3);
+    let sender = udp_peer(&mut router, a_port, 1);
+    let receiver = udp_peer(&mut router, b_port, 2);
+    for k in 0..n {
+        sender.send(&numbered(1, k)).expect("send");
+    }
+    // Every frame is queued (the router said so) before what follows.
+    for _ in 0..n {
+        router.wait_for("accepted ATTITUDE (#30) from 1.1");
+    }
+    (router, sender, receiver)
+}
+
 /// A removed interface goes on sending what was queued for it after the reload, for at
 /// most a second, then closes: every frame it had queued was either sent or counted in
 /// the warning that says how many it dropped; none that arrived after the reload was
@@ -459,16 +481,7 @@ fn a_removed_interface_sends_its_queue_for_at_most_a_second() {
     let rules = "default_action accept;\n";
     let a = format!("udp {{ port {a_port}; address 127.0.0.1; }}\n");
     let b = format!("udp {{ port {b_port}; address 127.0.0.1; max_bitrate 800; }}\n");
-    let mut router = Router::start(&s, &format!("{a}{b}{rules}"), 3);
-    let sender = udp_peer(&mut router, a_port, 1);
-    let slow = udp_peer(&mut router, b_port, 2);
-    for n in 0..100 {
-        sender.send(&numbered(1, n)).expect("send");
-    }
-    // Every frame is queued (the router said so) before the reload.
-    for _ in 0..100 {
-        router.wait_for("accepted ATTITUDE (#30) from 1.1");
-    }
+    let (mut router, sender, slow) = queued_for_b(&s, [&a, &b], [a_port, b_port], 100);
     let before = numbered_waiting(&slow, 1);
     let line = reload(&mut router, &format!("{a}{rules}"));
     assert!(line.ends_with("+0 interfaces, -1, 0 changed"), "{line}");
@@ -514,15 +527,7 @@ fn a_reopened_socket_takes_its_port_from_the_retiring_one() {
     // 800 bit/s: ten frames of 40 bytes take four seconds.
     let b = format!("udp {{ port {b_port}; max_bitrate 800; }}\n");
     let b_again = format!("udp {{ port {b_port}; address 0.0.0.0; max_bitrate 800; }}\n");
-    let mut router = Router::start(&s, &format!("{a}{b}{rules}"), 3);
-    let sender = udp_peer(&mut router, a_port, 1);
-    let _receiver = udp_peer(&mut router, b_port, 2);
-    for n in 0..10 {
-        sender.send(&numbered(1, n)).expect("send");
-    }
-    for _ in 0..10 {
-        router.wait_for("accepted ATTITUDE (#30) from 1.1");
-    }
+    let (mut router, sender, _receiver) = queued_for_b(&s, [&a, &b], [a_port, b_port], 10);
     let line = reload(&mut router, &format!("{a}{b_again}{rules}"));
     assert!(line.ends_with("+0 interfaces, -0, 1 changed"), "{line}");
     let said = router.err.seen.join("\n");

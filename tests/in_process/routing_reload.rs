@@ -25,6 +25,17 @@ fn load(conf: &str) -> config::Config {
     config::load(conf).expect("config loads").config
 }
 
+/// A core running `conf` (its interfaces without keys) and the two interfaces it has.
+fn start_two(conf: &str) -> (Engine, InterfaceId, InterfaceId) {
+    let config = load(conf);
+    let mut e = Engine::new(&config, RouterOptions::default());
+    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
+    let [first, second] = opened(&done.requests)[..] else {
+        panic!("two interfaces: {:?}", done.requests);
+    };
+    (e, first, second)
+}
+
 /// The interfaces `requests` opens, in order.
 fn opened(requests: &[Request]) -> Vec<InterfaceId> {
     requests
@@ -53,12 +64,7 @@ fn notices(e: &mut Engine) -> Vec<Notice> {
 /// station (255.190) behind the second, and five frames of the vehicle queued for the
 /// ground station, not sent yet. Returns the core, both interfaces and the frames.
 fn five_queued() -> (Engine, InterfaceId, InterfaceId, Vec<Vec<u8>>) {
-    let config = load(BOTH);
-    let mut e = Engine::new(&config, RouterOptions::default());
-    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
-    let [vehicle, gcs] = opened(&done.requests)[..] else {
-        panic!("two interfaces: {:?}", done.requests);
-    };
+    let (mut e, vehicle, gcs) = start_two(BOTH);
     let now = Timestamp::from_secs(1);
     e.handle_datagram(
         gcs,
@@ -189,13 +195,8 @@ fn a_reopened_interface_retires_the_old_socket_and_opens_a_new_one() {
 
 #[test]
 fn a_stream_that_is_down_closes_at_once() {
-    let conf = "udp { port 14550; }\ntcp { connect 127.0.0.1:1; }\ndefault_action accept;\n";
-    let config = load(conf);
-    let mut e = Engine::new(&config, RouterOptions::default());
-    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
-    let [_, client] = opened(&done.requests)[..] else {
-        panic!("two interfaces: {:?}", done.requests);
-    };
+    let (mut e, _, client) =
+        start_two("udp { port 14550; }\ntcp { connect 127.0.0.1:1; }\ndefault_action accept;\n");
     let done = e.configure(&load(FIRST), &[None], Timestamp::from_secs(1));
     assert_eq!(done.requests, [Request::Close(client)]);
     assert!(e.interface(client).is_none());
@@ -203,13 +204,8 @@ fn a_stream_that_is_down_closes_at_once() {
 
 #[test]
 fn a_removed_servers_connections_send_their_queue_and_stay_apart_from_a_new_server() {
-    let conf = "udp { port 14550; }\ntcp { port 5760; }\ndefault_action accept;\n";
-    let config = load(conf);
-    let mut e = Engine::new(&config, RouterOptions::default());
-    let done = e.configure(&config, &[None, None], Timestamp::ZERO);
-    let [vehicle, server] = opened(&done.requests)[..] else {
-        panic!("two interfaces: {:?}", done.requests);
-    };
+    let (mut e, vehicle, server) =
+        start_two("udp { port 14550; }\ntcp { port 5760; }\ndefault_action accept;\n");
     let now = Timestamp::from_secs(1);
     let conn = e.accept(server, peer(9), now).expect("accepted");
     let frame = routing::frame("ATTITUDE", "1.1", None);
