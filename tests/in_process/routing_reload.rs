@@ -238,3 +238,30 @@ fn a_removed_servers_connections_send_their_queue_and_stay_apart_from_a_new_serv
     e.close_if_drained(conn);
     assert!(notices(&mut e).contains(&Notice::Closed(conn)));
 }
+
+#[test]
+fn a_reopened_serial_port_closes_at_once() {
+    let serial = |baud: u32| {
+        format!(
+            "udp {{ port 14550; }}\nserial {{ device /dev/ttyFAKE0; baudrate {baud}; }}\n\
+             default_action accept;\n"
+        )
+    };
+    // Serial links are offered packets first: the port is the first interface.
+    let (mut e, port, vehicle) = start_two(&serial(57600));
+    let now = Timestamp::from_secs(1);
+    e.stream_opened(port, now);
+    e.handle_stream(port, &routing::frame("HEARTBEAT", "255.190", None), now);
+    e.handle_datagram(
+        vehicle,
+        peer(1),
+        &routing::frame("ATTITUDE", "1.1", None),
+        now,
+    );
+    let done = e.configure(&load(&serial(115200)), &[None, None], now);
+    let [Request::Close(closed), Request::Open(..)] = done.requests[..] else {
+        panic!("{:?}", done.requests);
+    };
+    assert_eq!(closed, port);
+    assert_eq!(done.dropped, 1, "its queued frame");
+}

@@ -271,7 +271,12 @@ impl Engine {
                 }
                 Fate::Reopened => {
                     let label = self.describe(id);
-                    let (dropped, sending) = self.retire_interface(id, now, &mut done.requests);
+                    // A serial port is reopened on the same device, whose new settings
+                    // would garble what the old handle still wrote: it closes at once.
+                    let (dropped, sending) = match config.interfaces[m.new] {
+                        Interface::Serial(_) => (self.forget_interface(id, &mut done.requests), 0),
+                        _ => self.retire_interface(id, now, &mut done.requests),
+                    };
                     reopened.push((m.new, done.details.len(), label.clone()));
                     done.details.push(format!(
                         "{label} reopened: a setting of its socket or device changed{}",
