@@ -80,6 +80,12 @@ pub trait Driver {
     /// True if nothing the core handed out is still waiting to be written.
     fn idle(&self) -> bool;
 
+    /// The local port its UDP socket holds (or binds when it opens), if it has a fixed
+    /// one: a driver a reload retired gives it up to a new socket that needs it.
+    fn udp_port(&self) -> Option<u16> {
+        None
+    }
+
     /// When the driver wants [`Driver::expire`] called (a WebSocket handshake's time
     /// limit), if ever. Asked when the driver joins the loop; the loop looks once a
     /// second, so the call comes up to a second late.

@@ -66,8 +66,9 @@ struct Slot {
     /// Its open waits for a look-up of its remote (the waker rings): it is in
     /// [`Runtime::opening`].
     opening: bool,
-    /// A reload removed its interface: it is not read, only flushed until the core
-    /// closes it ([`Request::Retire`]); it is in [`Runtime::retiring`].
+    /// A reload removed its interface: it is flushed until the core closes it
+    /// ([`Request::Retire`]); what it reads the core drops. It is in
+    /// [`Runtime::retiring`].
     retiring: bool,
 }
 
@@ -247,7 +248,6 @@ impl Runtime {
         if let (Ok(()), Some(fd)) = (&result, fd)
             && slot.driver.level_triggered()
             && !self.stopping
-            && !slot.retiring
         {
             result =
                 sys::watch_level_triggered(self.poll.as_raw_fd(), fd, key, slot.watching_writes);
@@ -307,7 +307,7 @@ impl Runtime {
     }
 
     fn receive(&mut self, key: usize, now: Timestamp) {
-        let Some(slot) = self.slots.get_mut(key).filter(|s| !s.retiring) else {
+        let Some(slot) = self.slots.get_mut(key) else {
             return;
         };
         let progress = slot.driver.receive(&mut self.engine, now);
@@ -377,8 +377,9 @@ impl Runtime {
         }
     }
 
-    /// Stops reading the driver of `interface`, which a reload removed, and flushes it
-    /// until the core closes it ([`Request::Retire`]).
+    /// Flushes the driver of `interface`, which a reload removed, until the core closes
+    /// it ([`Request::Retire`]). It is still read: the core drops what it gets, and a
+    /// socket closed with unread input would be reset, losing what it had just sent.
     fn retire(&mut self, interface: InterfaceId) {
         let Some(&key) = self.slot_of.get(interface.0) else {
             return;
@@ -387,11 +388,7 @@ impl Runtime {
             return;
         };
         slot.retiring = true;
-        slot.opening = false;
         self.retiring.push(key);
-        self.woken.retain(|&k| k != key);
-        // Watched edge-triggered again: input left waiting must not wake every turn.
-        self.watch(key);
         self.mark_flush(key);
     }
 
@@ -415,16 +412,20 @@ impl Runtime {
         self.retiring.append(&mut keys);
     }
 
-    /// Closes every retiring interface now, what they had queued dropped (a reload
-    /// opens an interface on a port one of them still holds).
-    fn close_retiring(&mut self, now: Timestamp) {
-        for key in std::mem::take(&mut self.retiring) {
-            if let Some(slot) = self.slots.get(key).filter(|s| s.retiring) {
-                self.engine.close_retiring(slot.driver.interface());
-            }
+    /// Closes the retiring interfaces whose UDP socket holds local `port` now, what
+    /// they had queued dropped (a new socket needs the port). True if there was one.
+    fn close_retiring_on(&mut self, port: u16, now: Timestamp) -> bool {
+        let holders: Vec<InterfaceId> = (self.retiring.iter())
+            .filter_map(|&key| self.slots.get(key))
+            .filter(|s| s.retiring && s.driver.udp_port() == Some(port))
+            .map(|s| s.driver.interface())
+            .collect();
+        for &id in &holders {
+            self.engine.close_retiring(id);
         }
         // Their slots leave the loop before any interface number is used again.
         self.handle_notices(now);
+        !holders.is_empty()
     }
 
     /// Sends what the drivers with something to send can send now — the interfaces the
@@ -562,7 +563,22 @@ impl Runtime {
         let Some(slot) = self.slots.get_mut(key) else {
             return;
         };
-        match slot.driver.open(&mut self.engine, now) {
+        let mut opened = slot.driver.open(&mut self.engine, now);
+        // A UDP client's fixed port still held by the socket a reload retired.
+        if let Err(e) = &opened
+            && e.kind() == io::ErrorKind::AddrInUse
+            && let Some(port) = slot.driver.udp_port()
+            && self.close_retiring_on(port, now)
+        {
+            let Some(slot) = self.slots.get_mut(key) else {
+                return;
+            };
+            opened = slot.driver.open(&mut self.engine, now);
+        }
+        let Some(slot) = self.slots.get_mut(key) else {
+            return;
+        };
+        match opened {
             Ok(true) => {
                 self.engine.stream_opened(interface, now);
                 slot.watching_writes = false;

@@ -387,6 +387,10 @@ impl Driver for UdpDriver {
     fn idle(&self) -> bool {
         self.in_flight.is_empty()
     }
+
+    fn udp_port(&self) -> Option<u16> {
+        Some(self.config.port).filter(|&p| p != 0)
+    }
 }
 
 #[cfg(test)]

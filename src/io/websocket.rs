@@ -114,7 +114,12 @@ fn refusal(e: &WsError) -> Option<(&'static str, String)> {
         WsError::Protocol(ProtocolError::WrongHttpMethod) => {
             ("405 Method Not Allowed", "Allow: GET\r\n")
         }
-        WsError::Io(_) | WsError::ConnectionClosed | WsError::AlreadyClosed | WsError::Http(_) => {
+        // The peer ended before its request was whole (a port scan, a health check).
+        WsError::Protocol(ProtocolError::HandshakeIncomplete)
+        | WsError::Io(_)
+        | WsError::ConnectionClosed
+        | WsError::AlreadyClosed
+        | WsError::Http(_) => {
             return None;
         }
         _ => ("400 Bad Request", ""),

@@ -180,8 +180,8 @@ pub struct LiveInterface {
     pub signing: Option<Edge>,
     /// Its `group` (redundant paths to one vehicle), if it has one; its links take it.
     pub group: Option<GroupId>,
-    /// When it is closed at the latest, once a reload removed it: until then it reads
-    /// nothing and sends what was queued for it (see `Engine::configure`).
+    /// When it is closed at the latest, once a reload removed it: until then what it
+    /// reads is dropped, and it sends what was queued for it (see `Engine::configure`).
     pub retiring: Option<Timestamp>,
 }
 

@@ -545,15 +545,23 @@ impl Router {
         }
     }
 
-    /// Frees shared capacity for a packet of `cost` bytes and `priority`: drops the
-    /// oldest packets of the lowest priority queued anywhere, each from the link holding
-    /// the most among those with such a packet, never one that ranks above the new one.
+    /// Frees shared capacity for a packet of `cost` bytes and `priority`: drops what
+    /// retired links still hold first, then the oldest packets of the lowest priority
+    /// queued anywhere, each from the link holding the most among those with such a
+    /// packet, never one that ranks above the new one.
     /// Frees an eighth of the capacity beyond what is needed, so that under a sustained
     /// flood the scan over all links runs once per many packets, not for each. Returns
     /// false if the new packet still does not fit.
     fn make_room(&mut self, cost: usize, priority: i32, out: &mut Output) -> bool {
         let cap = self.options.total_queue_capacity;
         let goal = cap.saturating_sub(cap / 8).max(cost);
+        // What retired links still send ranks below any live link's packet.
+        for link in &mut self.retired {
+            while self.queued_bytes.saturating_add(cost) > goal && link.queue.bytes() > 0 {
+                self.queued_bytes -= link.queue.drop_lowest();
+                out.queue_drops += 1;
+            }
+        }
         let key = |k: usize, q: &PacketQueue| {
             q.lowest_priority()
                 .map(|p| Reverse((p, Reverse(q.bytes()), k)))

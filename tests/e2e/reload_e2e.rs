@@ -547,6 +547,54 @@ fn a_reopened_socket_takes_its_port_from_the_retiring_one() {
     router.stop();
 }
 
+/// The same for a UDP client with a fixed local port, which binds when it opens: its
+/// new socket takes the port from the old one, which is still sending its queue.
+#[test]
+fn a_reopened_udp_client_takes_its_fixed_port_back() {
+    let s = Scratch::new("reload-reopen-client");
+    let (a_port, local) = (free_udp_port(), free_udp_port());
+    let ground = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let g_port = ground.local_addr().expect("addr").port();
+    let a = format!("udp {{ port {a_port}; address 127.0.0.1; }}\n");
+    let client = |address: &str| {
+        format!("udp {{ connect 127.0.0.1:{g_port}; port {local};{address} max_bitrate 800; }}\n")
+    };
+    let rules = "default_action accept;\n";
+    let mut router = Router::start(&s, &format!("{a}{}{rules}", client("")), 3);
+    let sender = udp_peer(&mut router, a_port, 1);
+    for n in 0..100 {
+        sender.send(&numbered(1, n)).expect("send");
+    }
+    for _ in 0..100 {
+        router.wait_for("accepted ATTITUDE (#30) from 1.1");
+    }
+    let line = reload(
+        &mut router,
+        &format!("{a}{}{rules}", client(" address 127.0.0.1;")),
+    );
+    assert!(line.ends_with("+0 interfaces, -0, 1 changed"), "{line}");
+    router.err.wait_for(
+        &format!("udp connect 127.0.0.1:{g_port} closed: "),
+        5 * SECOND,
+    );
+    // The new socket sends from the same port.
+    eventually("a frame from the new socket", 10 * SECOND, || {
+        sender.send(&attitude(1, 7)).expect("send");
+        ground
+            .set_read_timeout(Some(Duration::from_millis(200)))
+            .expect("timeout");
+        let mut buf = [0u8; 512];
+        std::iter::from_fn(|| {
+            let (n, from) = ground.recv_from(&mut buf).ok()?;
+            Some(from.port() == local && buf[..n] == attitude(1, 7)[..])
+        })
+        .any(|new| new)
+    });
+    let said = router.err.seen.join("\n");
+    assert!(!said.contains("cannot open"), "{said}");
+    router.stop();
+}
+
 /// A serial port whose `baudrate` changes is reopened (its device opened again, said in
 /// the log) and routes as before, while the UDP interface beside it keeps its socket;
 /// a serial port left as it was is not touched.

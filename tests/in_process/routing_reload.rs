@@ -265,3 +265,69 @@ fn a_reopened_serial_port_closes_at_once() {
     assert_eq!(closed, port);
     assert_eq!(done.dropped, 1, "its queued frame");
 }
+
+#[test]
+fn what_retiring_links_hold_is_the_first_to_go_when_all_queues_are_full() {
+    let three = "udp { port 14550; }\nudp { port 14560; }\nudp { port 14570; }\n\
+                 default_action accept;\n";
+    let frame = |n: u8| routing::frame_seq("ATTITUDE", "1.1", None, n);
+    let now = Timestamp::from_secs(1);
+    // Three interfaces, a ground station behind each of the last two.
+    let start = |options: RouterOptions| {
+        let config = load(three);
+        let mut e = Engine::new(&config, options);
+        let done = e.configure(&config, &[None, None, None], Timestamp::ZERO);
+        let [vehicle, gone, kept] = opened(&done.requests)[..] else {
+            panic!("three interfaces: {:?}", done.requests);
+        };
+        e.handle_datagram(
+            gone,
+            peer(2),
+            &routing::frame("HEARTBEAT", "255.190", None),
+            now,
+        );
+        e.handle_datagram(
+            kept,
+            peer(3),
+            &routing::frame("HEARTBEAT", "255.191", None),
+            now,
+        );
+        e.handle_datagram(
+            vehicle,
+            peer(1),
+            &routing::frame("HEARTBEAT", "1.1", None),
+            now,
+        );
+        for i in [vehicle, gone, kept] {
+            sent(&mut e, i, now);
+        }
+        // Eight frames for each ground station.
+        for n in 0..8 {
+            e.handle_datagram(vehicle, peer(1), &frame(n), now);
+        }
+        (e, vehicle, gone, kept)
+    };
+    // What a queued frame costs, then room for twenty in all queues together.
+    let cost = start(RouterOptions::default()).0.router().queued_bytes() / 16;
+    let (mut e, vehicle, gone, kept) = start(RouterOptions {
+        total_queue_capacity: 20 * cost,
+        ..RouterOptions::default()
+    });
+    let fewer = "udp { port 14550; }\nudp { port 14570; }\ndefault_action accept;\n";
+    e.configure(&load(fewer), &[None, None], now);
+    assert!(e.is_retiring(gone));
+    // Eight more for the one kept: 24 frames do not fit in 20.
+    for n in 8..16 {
+        e.handle_datagram(vehicle, peer(1), &frame(n), now);
+    }
+    let got = sent(&mut e, kept, now);
+    assert_eq!(
+        got,
+        (0..16).map(frame).collect::<Vec<_>>(),
+        "the kept one lost nothing"
+    );
+    assert!(
+        sent(&mut e, gone, now).len() < 8,
+        "the retiring one kept all"
+    );
+}

@@ -96,8 +96,8 @@ impl Runtime {
     }
 
     /// The driver for the core's new interface `id`, of block `iface` (see
-    /// [`driver_for`]). A port still held by an interface the reload removed, which is
-    /// sending its queue, is freed: the retiring interfaces close now.
+    /// [`driver_for`]). A UDP port still held by an interface the reload removed, which
+    /// is sending its queue, is taken from it: that one closes now.
     fn make_driver(
         &mut self,
         iface: &Interface,
@@ -105,8 +105,11 @@ impl Runtime {
         now: Timestamp,
     ) -> io::Result<Box<dyn Driver>> {
         match driver_for(iface, id, &self.waker) {
-            Err(e) if e.kind() == io::ErrorKind::AddrInUse && !self.retiring.is_empty() => {
-                self.close_retiring(now);
+            Err(e)
+                if e.kind() == io::ErrorKind::AddrInUse
+                    && let Interface::Udp(u) = iface
+                    && self.close_retiring_on(u.port, now) =>
+            {
                 driver_for(iface, id, &self.waker)
             }
             made => made,

@@ -31,14 +31,15 @@ impl Configured {
 /// What the event loop must do after [`Engine::configure`], in the order given (every
 /// close and retire comes before every open: a port or device may move from an old block
 /// to a new one, and an interface number may be used again). A retiring driver still
-/// holds its port: if an open finds it taken, close the retiring ones
+/// holds its port: if an open finds it taken, close the retiring one that holds it
 /// ([`Engine::close_retiring`]) and try again.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Request {
     /// Close the driver of this interface (the core has forgotten it).
     Close(InterfaceId),
-    /// Stop reading the driver of this interface, but go on flushing it: it sends what
-    /// was queued for it (its links take no new packets), for at most [`CLOSE_FLUSH`].
+    /// Go on flushing the driver of this interface, which left routing: it sends what
+    /// was queued for it (its links take no new packets, and what it reads is dropped),
+    /// for at most [`CLOSE_FLUSH`].
     /// Close it when the core says so ([`Notice::Closed`]): once
     /// [`Engine::close_if_drained`], asked whenever its driver has nothing in flight,
     /// finds nothing left, or when the time is up.
@@ -530,9 +531,10 @@ impl Engine {
     }
 
     /// Takes interface `id` (with the connections of a server) out of routing, asking
-    /// the loop to close each: at once where it has nothing queued it can send (a
-    /// server socket, a stream that is down: what was queued for it is dropped), else
-    /// once that was sent, by `now` + [`CLOSE_FLUSH`] at the latest ([`Request::Retire`]).
+    /// the loop to close each: at once where it cannot send (a server socket, a stream
+    /// that is down: what was queued for it is dropped), else once what was queued for
+    /// it, in the core and in its driver, was sent, by `now` + [`CLOSE_FLUSH`] at the
+    /// latest ([`Request::Retire`]).
     /// Returns how many queued frames were dropped now and how many are being sent.
     ///
     /// [`CLOSE_FLUSH`]: super::CLOSE_FLUSH
@@ -544,7 +546,12 @@ impl Engine {
     ) -> (u64, usize) {
         let (mut dropped, mut sending) = (0, 0);
         for member in self.family(id) {
-            if self.is_idle(member) {
+            // A server socket sends nothing itself; a stream that is down cannot send.
+            let sends = self
+                .interfaces
+                .get(member.0)
+                .is_some_and(|i| i.is_open() && !matches!(i.kind, Kind::Listener { .. }));
+            if !sends {
                 dropped += self.forget_member(member, requests);
                 continue;
             }
@@ -793,8 +800,8 @@ mod tests {
             done.requests,
             [
                 Request::Close(ids[0]),
-                Request::Close(conn),
-                Request::Close(later)
+                Request::Retire(conn),
+                Request::Retire(later)
             ]
         );
     }
