@@ -66,10 +66,17 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
     let mut entry_of: HashMap<usize, usize> = HashMap::new();
     let mut link_interface: HashMap<LinkId, String> = HashMap::new();
     for (key, i) in src.interfaces.iter() {
-        if let Kind::Stream {
-            accepted_by: Some(_),
-            ..
-        } = i.kind
+        // A connection counts into its server; an interface a reload removed, still
+        // sending its queue, is not shown (its links left routing already, and a
+        // reopened one's successor has its label).
+        if i.retiring.is_some()
+            || matches!(
+                i.kind,
+                Kind::Stream {
+                    accepted_by: Some(_),
+                    ..
+                }
+            )
         {
             continue;
         }

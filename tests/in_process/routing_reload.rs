@@ -105,6 +105,14 @@ fn a_removed_interface_sends_its_queue_then_closes() {
     );
     assert!(e.is_retiring(gcs));
     assert!(e.poll_timeout() <= now + CLOSE_FLUSH);
+    let shown: Vec<String> = (e.stats(now).interfaces.into_iter())
+        .map(|i| i.label)
+        .collect();
+    assert_eq!(
+        shown,
+        ["udp 0.0.0.0:14550"],
+        "the statistics show what runs"
+    );
 
     // Out of routing: a new frame of the vehicle is not queued for it, and what it
     // receives is not routed.
