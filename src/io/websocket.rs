@@ -7,7 +7,8 @@
 //!   frames, and a frame may be split across messages.
 //! - Text messages are not MAVLink: their bytes are counted as junk and dropped; the
 //!   connection stays.
-//! - A message (or frame) over [`MAX_MESSAGE`] bytes, or a handshake not done within
+//! - A message (or frame) over [`MAX_MESSAGE`] bytes (Close code 1009), a protocol
+//!   error (1002), or a handshake not done within
 //!   [`HANDSHAKE_LIMIT`], closes the connection (logged, counted as an I/O error); so
 //!   does a browser's request from an origin the block does not name (answered 403),
 //!   and a request that is not a WebSocket upgrade (answered 426, 405 or 400: see
@@ -31,7 +32,9 @@ use tungstenite::handshake::server::{Callback, ErrorResponse, Request, Response,
 use tungstenite::handshake::{HandshakeError, MidHandshake};
 use tungstenite::http::StatusCode;
 use tungstenite::protocol::WebSocketConfig;
-use tungstenite::{Message, WebSocket};
+use tungstenite::protocol::frame::CloseFrame;
+use tungstenite::protocol::frame::coding::CloseCode;
+use tungstenite::{Message, Utf8Bytes, WebSocket};
 
 use super::driver::{Driver, Progress};
 use super::tcp::TcpListenerDriver;
@@ -91,6 +94,17 @@ impl Callback for OriginCheck {
         *refusal.status_mut() = StatusCode::FORBIDDEN;
         Err(refusal)
     }
+}
+
+/// Tells the peer why its connection ends, with a Close frame of `code` (sent as far as
+/// the socket takes it now: the connection is closed next either way).
+fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
+    let frame = CloseFrame {
+        code,
+        reason: Utf8Bytes::from_static(reason),
+    };
+    let _ = ws.close(Some(frame));
+    let _ = ws.flush();
 }
 
 /// The HTTP answer to a request the handshake refused, with its status: 426 (with
@@ -295,13 +309,23 @@ impl WebSocketDriver {
                     | WsError::Protocol(ProtocolError::ResetWithoutClosingHandshake),
                 ) => return self.end(engine, now),
                 Err(WsError::Capacity(e)) => {
+                    say_close(ws, CloseCode::Size, "message over 64 KiB");
                     return self.lose(
                         engine,
                         now,
                         Some(format!("message over {MAX_MESSAGE} bytes: {e}")),
                     );
                 }
-                Err(e) => return self.lose(engine, now, Some(e.to_string())),
+                Err(e) => {
+                    match &e {
+                        WsError::Protocol(_) => {
+                            say_close(ws, CloseCode::Protocol, "protocol error")
+                        }
+                        WsError::Utf8(_) => say_close(ws, CloseCode::Invalid, "text not UTF-8"),
+                        _ => {}
+                    }
+                    return self.lose(engine, now, Some(e.to_string()));
+                }
             }
         }
         Progress::More

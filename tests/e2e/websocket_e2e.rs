@@ -218,7 +218,11 @@ fn an_oversized_message_closes_the_connection() {
     big.send(Message::binary(vec![0u8; 64 * 1024 + 1]))
         .expect("send");
     router.err.wait_for("message over 65536 bytes", 10 * SECOND);
-    assert!(closed_within(&mut big, 5 * SECOND).is_some(), "still open");
+    assert_eq!(
+        close_code(&mut big, 5 * SECOND),
+        Some(1009),
+        "said why (too big)"
+    );
     other.send(Message::binary(attitude(201, 2))).expect("send");
     assert_eq!(udp_frames(&v, 1, 5 * SECOND), [attitude(201, 2)]);
     let label = format!("websocket 127.0.0.1:{port}");
@@ -226,7 +230,31 @@ fn an_oversized_message_closes_the_connection() {
         c.interface(&label).is_some_and(|i| i.io_errors == 1)
     });
     assert!(c.link(&link_name(&big)).is_none(), "{}", c.text);
+    // A frame a client sends unmasked breaks the protocol: closed, saying so.
+    let mut raw = ws_join(&mut router, port, 202);
+    raw.get_mut().write_all(&[0x82, 0x01, 0x00]).expect("write");
+    assert_eq!(
+        close_code(&mut raw, 5 * SECOND),
+        Some(1002),
+        "said why (protocol)"
+    );
     router.stop();
+}
+
+/// The code of the Close frame the router sends client `ws` within `timeout` (None: it
+/// closed without one, or not at all).
+fn close_code(ws: &mut Client, timeout: Duration) -> Option<u16> {
+    let start = Instant::now();
+    while start.elapsed() < timeout {
+        match ws.read() {
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+            Ok(Message::Close(frame)) => return frame.map(|f| u16::from(f.code)),
+            Err(_) => return None,
+            Ok(_) => {}
+        }
+    }
+    None
 }
 
 /// `max_peers` and `allow` as for `tcp`: a connection beyond the limit, or from outside
