@@ -47,6 +47,9 @@ const TIMER: Token = Token(usize::MAX - 2);
 const WAKER: Token = Token(usize::MAX - 3);
 /// How long the log output may take to drain at exit.
 const LOG_DRAIN: Duration = Duration::from_secs(1);
+/// How often a lingering socket is asked whether its peer acknowledged everything
+/// (no event says so).
+const LINGER_POLL: Duration = Duration::from_millis(10);
 /// How long the recorder may take to write its last records and close its file at exit.
 const RECORDER_FINISH: Duration = Duration::from_secs(2);
 
@@ -70,6 +73,10 @@ struct Slot {
     /// ([`Request::Retire`]); what it reads the core drops. It is in
     /// [`Runtime::retiring`].
     retiring: bool,
+    /// Its interface is gone (or the router stops) and its sending side is shut: it is
+    /// only read and dropped until closing loses nothing ([`Driver::linger`]); it is in
+    /// [`Runtime::lingering`], and no longer the slot of any interface number.
+    lingering: bool,
 }
 
 /// Everything the loop owns.
@@ -92,6 +99,9 @@ struct Runtime {
     /// Slots of interfaces a reload removed that still send their queue (see
     /// [`Slot::retiring`]).
     retiring: Vec<usize>,
+    /// Slots that linger before they close, each with the time it closes at the latest
+    /// (see [`Slot::lingering`]).
+    lingering: Vec<(usize, Timestamp)>,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -307,7 +317,8 @@ impl Runtime {
     }
 
     fn receive(&mut self, key: usize, now: Timestamp) {
-        let Some(slot) = self.slots.get_mut(key) else {
+        // A lingering slot is read by `end_lingering`.
+        let Some(slot) = self.slots.get_mut(key).filter(|s| !s.lingering) else {
             return;
         };
         let progress = slot.driver.receive(&mut self.engine, now);
@@ -347,6 +358,7 @@ impl Runtime {
             flush_queued: false,
             opening: false,
             retiring: false,
+            lingering: false,
         });
         if self.slot_of.len() <= interface.0 {
             self.slot_of.resize(interface.0 + 1, usize::MAX);
@@ -366,15 +378,69 @@ impl Runtime {
 
     /// Takes the driver of a closed connection out of the loop.
     fn remove(&mut self, interface: InterfaceId) {
-        let Some(key) = self.slot_of.get_mut(interface.0).map(std::mem::take) else {
+        let Some(key) = self
+            .slot_of
+            .get_mut(interface.0)
+            .map(|k| std::mem::replace(k, usize::MAX))
+        else {
             return;
         };
+        // A reload's removed interface that sent its queue ends cleanly.
+        if self.slots.get(key).is_some_and(|s| s.retiring) {
+            let until = self.now() + CLOSE_FLUSH;
+            if self.begin_linger(key, until) {
+                return;
+            }
+        }
+        self.drop_slot(key);
+    }
+
+    /// Closes slot `key` and takes it out of the loop.
+    fn drop_slot(&mut self, key: usize) {
         self.close(key);
         self.slots.try_remove(key);
         self.woken.retain(|&k| k != key);
-        if let Some(k) = self.slot_of.get_mut(interface.0) {
-            *k = usize::MAX;
+    }
+
+    /// Shuts the sending side of slot `key`'s driver and lets it linger (until `until`
+    /// at the latest) before it closes, if it is a stream (see [`Driver::shut_write`]);
+    /// false if it is not. Its interface number is no longer its: what is read is
+    /// dropped without the core.
+    fn begin_linger(&mut self, key: usize, until: Timestamp) -> bool {
+        let Some(slot) = self.slots.get_mut(key).filter(|s| !s.lingering) else {
+            return false;
+        };
+        if !slot.driver.shut_write() {
+            return false;
         }
+        slot.lingering = true;
+        let id = slot.driver.interface();
+        if self.slot_of.get(id.0) == Some(&key) {
+            self.slot_of[id.0] = usize::MAX;
+        }
+        self.woken.retain(|&k| k != key);
+        self.lingering.push((key, until));
+        true
+    }
+
+    /// Closes the lingering slots for which closing loses nothing any more, or whose time
+    /// is up.
+    fn end_lingering(&mut self, now: Timestamp) {
+        if self.lingering.is_empty() {
+            return;
+        }
+        let mut lingering = std::mem::take(&mut self.lingering);
+        lingering.retain(|&(key, until)| {
+            let Some(slot) = self.slots.get_mut(key).filter(|s| s.lingering) else {
+                return false;
+            };
+            if now < until && !slot.driver.linger() {
+                return true;
+            }
+            self.drop_slot(key);
+            false
+        });
+        self.lingering.append(&mut lingering);
     }
 
     /// Flushes the driver of `interface`, which a reload removed, until the core closes
@@ -400,7 +466,7 @@ impl Runtime {
         }
         let mut keys = std::mem::take(&mut self.retiring);
         keys.retain(|&key| {
-            let Some(slot) = self.slots.get(key).filter(|s| s.retiring) else {
+            let Some(slot) = self.slots.get(key).filter(|s| s.retiring && !s.lingering) else {
                 return false;
             };
             let id = slot.driver.interface();
@@ -482,7 +548,8 @@ impl Runtime {
 
     /// Sends what driver `key` can send now.
     fn flush(&mut self, key: usize, now: Timestamp) {
-        let Some(slot) = self.slots.get_mut(key) else {
+        // A lingering slot sends nothing: its interface number may be another's now.
+        let Some(slot) = self.slots.get_mut(key).filter(|s| !s.lingering) else {
             return;
         };
         let progress = slot.driver.flush(&mut self.engine, now);
@@ -653,6 +720,9 @@ impl Runtime {
         if let Some(watchdog) = self.next_watchdog {
             due = due.min(watchdog);
         }
+        if !self.lingering.is_empty() {
+            due = due.min(now + LINGER_POLL);
+        }
         if self.timer_armed.is_none_or(|armed| due < armed) {
             self.timer_armed = Some(due);
             if let Err(e) = self.timer.set(Some(due.saturating_since(now))) {
@@ -677,9 +747,29 @@ impl Runtime {
     }
 
     fn idle(&self) -> bool {
-        self.slots
-            .iter()
-            .all(|(_, s)| s.driver.idle() && self.engine.is_idle(s.driver.interface()))
+        self.lingering.is_empty()
+            && self
+                .slots
+                .iter()
+                .all(|(_, s)| s.driver.idle() && self.engine.is_idle(s.driver.interface()))
+    }
+
+    /// At shutdown, lets each stream that has sent all that was queued for it linger
+    /// (until `until`) rather than be closed at exit, when a peer that still sends would
+    /// have it reset (see [`Driver::shut_write`]).
+    fn linger_sent(&mut self, until: Timestamp) {
+        let sent: Vec<usize> = (self.slots.iter())
+            .filter(|(_, s)| {
+                !s.lingering
+                    && s.registered.is_some()
+                    && s.driver.idle()
+                    && self.engine.is_idle(s.driver.interface())
+            })
+            .map(|(key, _)| key)
+            .collect();
+        for key in sent {
+            self.begin_linger(key, until);
+        }
     }
 
     fn run(&mut self) -> io::Result<()> {
@@ -777,6 +867,10 @@ impl Runtime {
             self.flush_ready(now);
             self.close_drained();
             self.handle_notices(now);
+            if let Some(deadline) = stop_by {
+                self.linger_sent(deadline);
+            }
+            self.end_lingering(now);
             self.arm_timer(now);
             self.logger.flush();
             if let Some(deadline) = stop_by {
@@ -977,6 +1071,7 @@ fn start(
         readable: VecDeque::new(),
         to_flush: Vec::new(),
         retiring: Vec::new(),
+        lingering: Vec::new(),
         opening: Vec::new(),
         woken: Vec::new(),
         timer,

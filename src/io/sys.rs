@@ -10,6 +10,8 @@
 //!   when the process is privileged;
 //! - `localtime_r`: the local calendar time for log lines and recording file names;
 //! - `statvfs`: the free space of the disk recordings are written to;
+//! - `SIOCOUTQ`: what a TCP socket sent that its peer has not acknowledged yet (a
+//!   socket is closed only once nothing is, see `Driver::shut_write`);
 //! - `geteuid`: the user whose files the recorder may remove;
 //! - `timerfd`: a wake-up with microsecond precision for `max_bitrate` pacing (epoll's
 //!   own timeout has millisecond granularity);
@@ -510,6 +512,19 @@ pub(super) fn free_bytes(path: &std::path::Path) -> io::Result<u64> {
     #[allow(clippy::useless_conversion)] // the field types differ between targets
     let (blocks, size) = (u64::from(st.f_bavail), u64::from(st.f_frsize));
     Ok(blocks.saturating_mul(size))
+}
+
+/// Bytes sent on stream socket `fd` that its peer has not acknowledged yet
+/// (`SIOCOUTQ`): once none are, closing it loses nothing, whatever the peer sends next.
+pub(super) fn unacknowledged_bytes(fd: &impl AsRawFd) -> io::Result<usize> {
+    let mut n: libc::c_int = 0;
+    // SAFETY: `SIOCOUTQ` (the same number as `TIOCOUTQ`) writes one `c_int` through the
+    // pointer, which points at `n`, owned by this frame for the call; `fd` is borrowed.
+    let r = unsafe { libc::ioctl(fd.as_raw_fd(), libc::TIOCOUTQ, &raw mut n) };
+    if r < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(usize::try_from(n).unwrap_or(0))
 }
 
 /// The user the process acts as (`geteuid`): the owner of the files it creates, and

@@ -4,8 +4,8 @@
 //! `TCP_NODELAY` (a frame leaves at once, not when Nagle's algorithm lets it) and
 //! keepalive (a peer that vanished without a word is noticed within about a minute).
 
-use std::io;
-use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
+use std::io::{self, Read};
+use std::net::{IpAddr, Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::os::fd::{AsRawFd, RawFd};
 use std::time::Duration;
 
@@ -18,6 +18,7 @@ use mio::Waker;
 use super::driver::{Driver, Progress};
 use super::resolve::Lookup;
 use super::stream::StreamIo;
+use super::sys;
 use crate::config::{Remote, TcpInterface};
 use crate::routing::{Engine, InterfaceId, Timestamp};
 
@@ -325,4 +326,31 @@ impl Driver for TcpStreamDriver {
     fn idle(&self) -> bool {
         self.io.idle() || self.stream.is_none()
     }
+
+    fn shut_write(&mut self) -> bool {
+        let Some(stream) = self.stream.as_ref().filter(|_| !self.connecting) else {
+            return false;
+        };
+        stream.shutdown(Shutdown::Write).is_ok()
+    }
+
+    fn linger(&mut self) -> bool {
+        self.stream.as_mut().is_none_or(linger_on)
+    }
+}
+
+/// Reads and drops what `stream` has (a bounded amount); true once closing it loses
+/// nothing: everything sent was acknowledged, or the peer ended, or it failed.
+pub(super) fn linger_on(stream: &mut TcpStream) -> bool {
+    let mut scratch = [0u8; 4096];
+    for _ in 0..16 {
+        match stream.read(&mut scratch) {
+            Ok(0) => return true,
+            Ok(_) => {}
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return true,
+        }
+    }
+    !matches!(sys::unacknowledged_bytes(stream), Ok(n) if n > 0)
 }

@@ -420,6 +420,21 @@ impl Driver for WebSocketDriver {
         !self.unflushed || matches!(self.state, State::Gone)
     }
 
+    fn shut_write(&mut self) -> bool {
+        let State::Open(ws) = &mut self.state else {
+            return false;
+        };
+        say_close(ws, CloseCode::Away, "the router closes this link");
+        ws.get_ref().shutdown(Shutdown::Write).is_ok()
+    }
+
+    fn linger(&mut self) -> bool {
+        match &mut self.state {
+            State::Open(ws) => super::tcp::linger_on(ws.get_mut()),
+            _ => true,
+        }
+    }
+
     fn deadline(&self) -> Option<Timestamp> {
         self.deadline
     }

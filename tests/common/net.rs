@@ -3,7 +3,7 @@
 //! counters report parsed, and what `/proc` says about the router process. Every wait is
 //! bounded and ends on an event.
 
-use std::io::Read;
+use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
@@ -128,6 +128,48 @@ pub fn free_tcp_port() -> u16 {
 pub fn connect(to: &str) -> TcpStream {
     super::eventually(format!("a connection to {to}"), 10 * SECOND, || {
         TcpStream::connect(to).map_err(|e| format!("{to}: {e}"))
+    })
+}
+
+/// A connection to `to` with a receive buffer of only 4 KiB: what the router sends it
+/// waits in the router's socket until it reads.
+pub fn connect_small(to: &str) -> TcpStream {
+    let socket =
+        socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).expect("socket");
+    socket.set_recv_buffer_size(4096).expect("receive buffer");
+    let addr: std::net::SocketAddr = to.parse().expect("an address");
+    socket.connect(&addr.into()).expect("connect");
+    socket.into()
+}
+
+/// A ground station on `stream` that says a heartbeat from `sys` every 5 ms for as long
+/// as the connection lasts, and reads only from `delay` on: once the connection ended
+/// (or nothing came for 5 s), the frames it read, in order.
+pub fn chatty_late_reader(
+    mut stream: TcpStream,
+    sys: u8,
+    delay: Duration,
+) -> std::thread::JoinHandle<Vec<Vec<u8>>> {
+    let mut beating = stream.try_clone().expect("clone");
+    std::thread::spawn(move || {
+        let beat = std::thread::spawn(move || {
+            while beating.write_all(&heartbeat(sys)).is_ok() {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        });
+        std::thread::sleep(delay);
+        stream.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+        let (mut parser, mut frames, mut buf) = (Parser::new(), Vec::new(), vec![0u8; 65536]);
+        while let Ok(n) = stream.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            parser.feed(&buf[..n], |f| frames.push(f.as_bytes().to_vec()));
+        }
+        // The heartbeats fail from now on.
+        let _ = stream.shutdown(std::net::Shutdown::Both);
+        beat.join().expect("heartbeats");
+        frames
     })
 }
 

@@ -18,7 +18,8 @@ use std::time::{Duration, Instant};
 
 use common::eventually;
 use common::net::{
-    SECOND, attitude, connect, free_tcp_port, heartbeat, number_of, numbered, udp_frames,
+    SECOND, attitude, chatty_late_reader, connect, connect_small, counters, free_tcp_port,
+    heartbeat, number_of, numbered, udp_frames,
 };
 use common::router::{BIN, Guard, Lines, Router, Scratch, free_udp_port, udp_port_bound};
 use mavtables::wire::Parser;
@@ -512,6 +513,41 @@ fn a_removed_interface_sends_its_queue_for_at_most_a_second() {
         "in order, nothing lost but the tail, nothing routed after the reload"
     );
     assert_eq!(got.len() + dropped, 100, "every frame sent or counted");
+    router.stop();
+}
+
+/// A TCP server removed by a reload ends its connection cleanly: a ground station that
+/// keeps sending (a heartbeat every 5 ms) and reads late (300 ms after the reload,
+/// through a small receive buffer) gets every frame queued for it before the reload,
+/// in order, then the end. Closing under its next bytes would have the kernel reset
+/// the connection and discard what it had not acknowledged.
+#[test]
+fn a_removed_servers_connection_gets_its_frames_though_it_keeps_sending() {
+    let s = Scratch::new("reload-linger");
+    let (udp, tcp) = (free_udp_port(), free_tcp_port());
+    let u = format!("udp {{ port {udp}; address 127.0.0.1; }}\n");
+    let t = format!("tcp {{ port {tcp}; address 127.0.0.1; }}\n");
+    let rules = "default_action accept;\n";
+    let mut router = Router::start(&s, &format!("{u}{t}{rules}"), 1);
+    let mut gcs = connect_small(&format!("127.0.0.1:{tcp}"));
+    gcs.write_all(&heartbeat(255)).expect("write");
+    router.wait_for("new component 255.1 on tcp:127.0.0.1:");
+    let vehicle = udp_peer(&mut router, udp, 1);
+    for n in 0..2000 {
+        vehicle.send(&numbered(1, n)).expect("send");
+    }
+    let name = format!("tcp:{}", gcs.local_addr().expect("addr"));
+    eventually("2,000 frames for the ground station", 10 * SECOND, || {
+        let c = counters(&mut router);
+        c.link(&name).is_some_and(|l| l.frames_out >= 2000)
+    });
+    let reader = chatty_late_reader(gcs, 255, Duration::from_millis(300));
+    reload(&mut router, &format!("{u}{rules}"));
+    let got: Vec<u32> = (reader.join().expect("reader").iter())
+        .filter(|f| f.len() > 7 && f[7] == 30)
+        .map(|f| number_of(f))
+        .collect();
+    assert_eq!(got, (0..2000).collect::<Vec<u32>>());
     router.stop();
 }
 

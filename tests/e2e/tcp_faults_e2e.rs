@@ -14,8 +14,9 @@ use std::time::{Duration, Instant};
 
 use common::eventually;
 use common::net::{
-    ACCEPT_ALL, Counters, SECOND, attitude, connect, counters, fd_count, free_tcp_port, heartbeat,
-    number_of, numbered, numbered_large, status_bytes, tcp_frames,
+    ACCEPT_ALL, Counters, SECOND, attitude, chatty_late_reader, connect, connect_small, counters,
+    fd_count, free_tcp_port, heartbeat, number_of, numbered, numbered_large, status_bytes,
+    tcp_frames,
 };
 use common::router::{Router, Scratch, free_udp_port};
 use mavtables::wire::Parser;
@@ -595,4 +596,44 @@ fn a_frame_in_pieces_with_long_pauses_arrives_whole_over_tcp() {
     let line = c.interface(&a_name).expect("a's interface");
     assert_eq!((line.frames, line.junk_bytes), (3, 0), "{}", c.text);
     router.stop();
+}
+
+/// At shutdown a ground station that keeps sending (a heartbeat every 5 ms) and reads
+/// late (300 ms after the stop, through a small receive buffer) still gets every frame
+/// the router says it sent it. Closing under the peer's next bytes would make the kernel
+/// reset the connection and discard what the peer had not acknowledged; the router
+/// shuts its sending side and closes once the peer has acknowledged it all (within a
+/// second).
+#[test]
+fn a_peer_that_keeps_sending_gets_everything_at_shutdown() {
+    let s = Scratch::new("tcp-linger");
+    let udp = free_udp_port();
+    let (mut router, to) = tcp_server(&s, &format!("udp {{ port {udp}; address 127.0.0.1; }}\n"));
+    let mut gcs = connect_small(&to);
+    gcs.write_all(&heartbeat(255)).expect("write");
+    router.wait_for("new component 255.1 on tcp:127.0.0.1:");
+    let name = link_name(&gcs);
+    let vehicle = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    vehicle.connect(("127.0.0.1", udp)).expect("connect");
+    vehicle.send(&heartbeat(1)).expect("send");
+    router.wait_for("new component 1.1 on 127.0.0.1:");
+    for n in 0..2000 {
+        vehicle.send(&numbered(1, n)).expect("send");
+    }
+    // Sent, but not read by the ground station yet.
+    counters_until(&mut router, "2,000 frames for the ground station", |c| {
+        c.link(&name).is_some_and(|l| l.frames_out >= 2000)
+    });
+    let reader = chatty_late_reader(gcs, 255, Duration::from_millis(300));
+    let stopped = router.stop();
+    let frames = reader.join().expect("reader").len() as u64;
+    let sent = Counters::at_exit(&stopped.stderr)
+        .link(&name)
+        .map(|l| l.frames_out)
+        .expect("the ground station's link at exit");
+    assert!(sent >= 2000, "{sent}");
+    assert_eq!(
+        frames, sent,
+        "frames the ground station received of those sent"
+    );
 }
