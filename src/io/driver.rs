@@ -60,9 +60,9 @@ pub trait Driver {
     /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.
     fn close(&mut self) {}
 
-    /// Begins a clean end, once what the core handed out is written (at shutdown, or
-    /// when a reload's removed interface has sent its queue): shuts the sending side,
-    /// so the peer gets all that was sent and then the end. True if the loop must then
+    /// Begins a clean end (at shutdown once what the core handed out is written, or
+    /// when a reload's removed interface closes): shuts the sending side, so the peer
+    /// gets all that was sent and then the end. True if the loop must then
     /// call [`Driver::linger`] until it says done before closing: Linux answers input
     /// that arrives after a TCP socket is closed with a reset, and discards what the
     /// peer has not acknowledged yet. Drivers without a stream need not override it.
@@ -71,7 +71,8 @@ pub trait Driver {
     }
 
     /// After [`Driver::shut_write`]: reads and drops what the peer still sends; true
-    /// once closing loses nothing (the peer acknowledged everything, ended, or failed).
+    /// once closing loses nothing here (the peer's system acknowledged everything, the
+    /// peer ended, or the connection failed).
     fn linger(&mut self) -> bool {
         true
     }

@@ -102,6 +102,8 @@ struct Runtime {
     /// Slots that linger before they close, each with the time it closes at the latest
     /// (see [`Slot::lingering`]).
     lingering: Vec<(usize, Timestamp)>,
+    /// When the lingering slots are asked next whether they may close.
+    next_linger_poll: Timestamp,
     timer: TimerFd,
     /// The deadline the timer is armed for (re-armed only when it changes).
     timer_armed: Option<Timestamp>,
@@ -385,7 +387,8 @@ impl Runtime {
         else {
             return;
         };
-        // A reload's removed interface that sent its queue ends cleanly.
+        // A reload's removed interface ends cleanly, whether its queue went out or its
+        // time ran out.
         if self.slots.get(key).is_some_and(|s| s.retiring) {
             let until = self.now() + CLOSE_FLUSH;
             if self.begin_linger(key, until) {
@@ -426,9 +429,10 @@ impl Runtime {
     /// Closes the lingering slots for which closing loses nothing any more, or whose time
     /// is up.
     fn end_lingering(&mut self, now: Timestamp) {
-        if self.lingering.is_empty() {
+        if self.lingering.is_empty() || now < self.next_linger_poll {
             return;
         }
+        self.next_linger_poll = now + LINGER_POLL;
         let mut lingering = std::mem::take(&mut self.lingering);
         lingering.retain(|&(key, until)| {
             let Some(slot) = self.slots.get_mut(key).filter(|s| s.lingering) else {
@@ -611,7 +615,9 @@ impl Runtime {
                     "Packet ID (#{id}) is not part of the '{DIALECT_NAME}' MAVLink dialect.\n"
                 )),
                 Notice::LinkAdded { .. } | Notice::LinkRemoved { .. } => {}
-                Notice::Open(interface) => self.open(interface, now),
+                // Nothing is opened while stopping (it would only be closed again).
+                Notice::Open(interface) if !self.stopping => self.open(interface, now),
+                Notice::Open(_) => {}
                 Notice::Closed(interface) => self.remove(interface),
                 Notice::PublishStats => self.publish_stats(now),
                 Notice::SaveSigningState(state) => {
@@ -721,7 +727,7 @@ impl Runtime {
             due = due.min(watchdog);
         }
         if !self.lingering.is_empty() {
-            due = due.min(now + LINGER_POLL);
+            due = due.min(self.next_linger_poll.max(now));
         }
         if self.timer_armed.is_none_or(|armed| due < armed) {
             self.timer_armed = Some(due);
@@ -1072,6 +1078,7 @@ fn start(
         to_flush: Vec::new(),
         retiring: Vec::new(),
         lingering: Vec::new(),
+        next_linger_poll: Timestamp::ZERO,
         opening: Vec::new(),
         woken: Vec::new(),
         timer,

@@ -185,6 +185,9 @@ pub struct WebSocketDriver {
     failed: Option<io::Error>,
     /// Scratch for [`Engine::poll_transmit`].
     next: VecDeque<Transmit>,
+    /// Its Close frame (see [`Driver::shut_write`]) waits in tungstenite's buffer for
+    /// room in the socket: the sending side is shut once it is out.
+    closing: bool,
     /// A second handle on the socket while the handshake runs: tungstenite takes the
     /// stream and answers only what the origin check refuses, so the HTTP error for
     /// any other refused request goes out through this one.
@@ -207,6 +210,7 @@ impl WebSocketDriver {
             unflushed: false,
             failed: None,
             next: VecDeque::with_capacity(FRAMES_PER_WRITE),
+            closing: false,
             answer: None,
         }
     }
@@ -424,15 +428,38 @@ impl Driver for WebSocketDriver {
         let State::Open(ws) = &mut self.state else {
             return false;
         };
-        say_close(ws, CloseCode::Away, "the router closes this link");
-        ws.get_ref().shutdown(Shutdown::Write).is_ok()
+        let frame = CloseFrame {
+            code: CloseCode::Away,
+            reason: Utf8Bytes::from_static("the router closes this link"),
+        };
+        let _ = ws.close(Some(frame));
+        self.closing = true;
+        true
     }
 
     fn linger(&mut self) -> bool {
-        match &mut self.state {
-            State::Open(ws) => super::tcp::linger_on(ws.get_mut()),
-            _ => true,
+        let State::Open(ws) = &mut self.state else {
+            return true;
+        };
+        if self.closing {
+            match ws.flush() {
+                Ok(()) => {}
+                Err(WsError::Io(e))
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+                    ) =>
+                {
+                    return false;
+                }
+                Err(_) => return true,
+            }
+            self.closing = false;
+            if ws.get_ref().shutdown(Shutdown::Write).is_err() {
+                return true;
+            }
         }
+        super::tcp::linger_on(ws.get_mut())
     }
 
     fn deadline(&self) -> Option<Timestamp> {

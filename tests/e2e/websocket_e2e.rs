@@ -637,3 +637,15 @@ fn a_reload_keeps_websocket_connections() {
     assert_eq!(udp_frames(&v, 1, 5 * SECOND), [attitude(255, 2)]);
     router.stop();
 }
+
+/// At shutdown a WebSocket client is told why its connection ends: a Close frame with
+/// code 1001 (going away), not a bare close that a page sees as 1006.
+#[test]
+fn a_client_is_told_the_router_goes_away() {
+    let s = Scratch::new("ws-going-away");
+    let (mut router, _, port) = router(&s, "", "");
+    let mut ws = ws_join(&mut router, port, 5);
+    let told = std::thread::spawn(move || close_code(&mut ws, 5 * SECOND));
+    router.stop();
+    assert_eq!(told.join().expect("client"), Some(1001));
+}
