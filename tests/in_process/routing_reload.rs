@@ -47,6 +47,17 @@ fn opened(requests: &[Request]) -> Vec<InterfaceId> {
         .collect()
 }
 
+/// `from` says a heartbeat on interface `iface`, from peer port `port` (the core learns
+/// it there).
+fn hello(e: &mut Engine, iface: InterfaceId, port: u16, from: &str, now: Timestamp) {
+    e.handle_datagram(
+        iface,
+        peer(port),
+        &routing::frame("HEARTBEAT", from, None),
+        now,
+    );
+}
+
 /// The bytes interface `iface` sends at `now`.
 fn sent(e: &mut Engine, iface: InterfaceId, now: Timestamp) -> Vec<Vec<u8>> {
     let mut queue = VecDeque::new();
@@ -66,18 +77,8 @@ fn notices(e: &mut Engine) -> Vec<Notice> {
 fn five_queued() -> (Engine, InterfaceId, InterfaceId, Vec<Vec<u8>>) {
     let (mut e, vehicle, gcs) = start_two(BOTH);
     let now = Timestamp::from_secs(1);
-    e.handle_datagram(
-        gcs,
-        peer(2),
-        &routing::frame("HEARTBEAT", "255.190", None),
-        now,
-    );
-    e.handle_datagram(
-        vehicle,
-        peer(1),
-        &routing::frame("HEARTBEAT", "1.1", None),
-        now,
-    );
+    hello(&mut e, gcs, 2, "255.190", now);
+    hello(&mut e, vehicle, 1, "1.1", now);
     sent(&mut e, vehicle, now);
     sent(&mut e, gcs, now);
     let frames: Vec<Vec<u8>> = (0..5)
@@ -288,24 +289,9 @@ fn what_retiring_links_hold_is_the_first_to_go_when_all_queues_are_full() {
         let [vehicle, gone, kept] = opened(&done.requests)[..] else {
             panic!("three interfaces: {:?}", done.requests);
         };
-        e.handle_datagram(
-            gone,
-            peer(2),
-            &routing::frame("HEARTBEAT", "255.190", None),
-            now,
-        );
-        e.handle_datagram(
-            kept,
-            peer(3),
-            &routing::frame("HEARTBEAT", "255.191", None),
-            now,
-        );
-        e.handle_datagram(
-            vehicle,
-            peer(1),
-            &routing::frame("HEARTBEAT", "1.1", None),
-            now,
-        );
+        hello(&mut e, gone, 2, "255.190", now);
+        hello(&mut e, kept, 3, "255.191", now);
+        hello(&mut e, vehicle, 1, "1.1", now);
         for i in [vehicle, gone, kept] {
             sent(&mut e, i, now);
         }
