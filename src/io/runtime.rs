@@ -482,6 +482,13 @@ impl Runtime {
         self.retiring.append(&mut keys);
     }
 
+    /// True if `error` says a port is taken, and it is `port`, held by a retiring UDP
+    /// socket, which is closed now (what it had queued dropped): try again.
+    fn freed_port(&mut self, error: &io::Error, port: Option<u16>, now: Timestamp) -> bool {
+        error.kind() == io::ErrorKind::AddrInUse
+            && port.is_some_and(|port| self.close_retiring_on(port, now))
+    }
+
     /// Closes the retiring interfaces whose UDP socket holds local `port` now, what
     /// they had queued dropped (a new socket needs the port). True if there was one.
     fn close_retiring_on(&mut self, port: u16, now: Timestamp) -> bool {
@@ -638,10 +645,9 @@ impl Runtime {
         };
         let mut opened = slot.driver.open(&mut self.engine, now);
         // A UDP client's fixed port still held by the socket a reload retired.
+        let port = slot.driver.udp_port();
         if let Err(e) = &opened
-            && e.kind() == io::ErrorKind::AddrInUse
-            && let Some(port) = slot.driver.udp_port()
-            && self.close_retiring_on(port, now)
+            && self.freed_port(e, port, now)
         {
             let Some(slot) = self.slots.get_mut(key) else {
                 return;

@@ -96,14 +96,20 @@ impl Callback for OriginCheck {
     }
 }
 
-/// Tells the peer why its connection ends, with a Close frame of `code` (sent as far as
-/// the socket takes it now: the connection is closed next either way).
-fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
+/// Queues a Close frame of `code` saying why the connection ends; it goes out with the
+/// next flush.
+fn start_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
     let frame = CloseFrame {
         code,
         reason: Utf8Bytes::from_static(reason),
     };
     let _ = ws.close(Some(frame));
+}
+
+/// Tells the peer why its connection ends, with a Close frame of `code` (sent as far as
+/// the socket takes it now: the connection is closed next either way).
+fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
+    start_close(ws, code, reason);
     let _ = ws.flush();
 }
 
@@ -428,11 +434,7 @@ impl Driver for WebSocketDriver {
         let State::Open(ws) = &mut self.state else {
             return false;
         };
-        let frame = CloseFrame {
-            code: CloseCode::Away,
-            reason: Utf8Bytes::from_static("the router closes this link"),
-        };
-        let _ = ws.close(Some(frame));
+        start_close(ws, CloseCode::Away, "the router closes this link");
         self.closing = true;
         true
     }

@@ -104,14 +104,12 @@ impl Runtime {
         id: InterfaceId,
         now: Timestamp,
     ) -> io::Result<Box<dyn Driver>> {
+        let port = match iface {
+            Interface::Udp(u) => Some(u.port),
+            _ => None,
+        };
         match driver_for(iface, id, &self.waker) {
-            Err(e)
-                if e.kind() == io::ErrorKind::AddrInUse
-                    && let Interface::Udp(u) = iface
-                    && self.close_retiring_on(u.port, now) =>
-            {
-                driver_for(iface, id, &self.waker)
-            }
+            Err(e) if self.freed_port(&e, port, now) => driver_for(iface, id, &self.waker),
             made => made,
         }
     }
