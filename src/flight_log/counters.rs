@@ -20,7 +20,8 @@ pub struct FlightLogCounters {
     pub lost: u64,
     /// Blocks received twice.
     pub duplicates: u64,
-    /// Blocks that came while no log was asked for.
+    /// Blocks that came while no log was asked for, or that belong to the log before
+    /// (still on their way when the autopilot began a new one).
     pub late: u64,
     /// Blocks dropped because the writer fell behind.
     pub dropped: u64,

@@ -83,6 +83,11 @@ impl Dataflash {
         self.next
     }
 
+    /// The highest seqno received, once one was.
+    pub(crate) fn highest(&self) -> Option<u32> {
+        self.seen.then_some(self.highest)
+    }
+
     /// Blocks held back behind a missing one.
     #[cfg(test)]
     pub(crate) fn held(&self) -> usize {

@@ -26,6 +26,9 @@ pub const STOP_AGAIN: Duration = Duration::from_secs(1);
 /// After the stop request at disarm, blocks already on their way are still taken into
 /// the log for this long; then its file is closed.
 pub const DRAIN: Duration = Duration::from_secs(2);
+/// A block of the log before, still on its way when the autopilot began a new one, lies
+/// at most this many blocks (ulog chunks) from where that log had got to.
+pub const EARLIER_SPAN: u32 = 256;
 /// Most bytes waiting for the writer (taken every loop turn): beyond, blocks are
 /// dropped and counted.
 pub const WRITES_BOUND: usize = 8 << 20;
@@ -85,6 +88,29 @@ struct Active {
     restarted: bool,
     /// Stopped at disarm: the blocks on their way are taken until then, and the log ends.
     ending: Option<Timestamp>,
+    /// Where the log before got to, when this one replaced it (the autopilot began a
+    /// new log), while that log's blocks may still come.
+    earlier: Option<Earlier>,
+}
+
+/// The log a new one replaced, while its blocks may still be on their way (reordered,
+/// or late over a second radio): for `DRAIN` after the new log began.
+#[derive(Debug, Clone, Copy)]
+struct Earlier {
+    /// Its highest seqno (dataflash) or the last chunk it took (ulog).
+    end: u32,
+    until: Timestamp,
+}
+
+impl Earlier {
+    /// True when a block `distance` away from the earlier log's end, which would open a
+    /// gap of `gap` blocks in the new log, is taken for the earlier log's: it lies
+    /// nearer to where that log got to than to where the new one is. Such a block is
+    /// neither acknowledged nor written (an ArduPilot sends a block of its own again
+    /// until it is acknowledged, so a block misjudged this way comes again).
+    fn claims(&self, now: Timestamp, distance: u32, gap: u32) -> bool {
+        now < self.until && gap > 0 && distance <= EARLIER_SPAN && distance < gap
+    }
 }
 
 /// The autopilot as its heartbeats describe it.
@@ -280,6 +306,7 @@ impl FlightLogger {
             start_again: now + START_AGAIN,
             restarted: false,
             ending: None,
+            earlier: None,
         });
         self.stop_again = None;
     }
@@ -346,21 +373,33 @@ impl FlightLogger {
         else {
             return self.late(Protocol::Dataflash, now);
         };
-        active.start_again = now + START_AGAIN;
-        let restarted = std::mem::take(&mut active.restarted);
         let Stream::Dataflash(d) = &mut active.stream else {
             return;
         };
+        if let (Some(earlier), Some(highest)) = (active.earlier, d.highest()) {
+            let gap = seqno.saturating_sub(highest.saturating_add(1));
+            if earlier.claims(now, seqno.abs_diff(earlier.end), gap) {
+                self.counters.late += 1;
+                return;
+            }
+        }
+        active.start_again = now + START_AGAIN;
+        let restarted = std::mem::take(&mut active.restarted);
         let mut acts = Acts::default();
         let new_log = (restarted && seqno == 0 && d.next() > 1)
             || d.block(seqno, &data, now, &mut acts) == Verdict::NewLog;
         if new_log {
             // The autopilot started a new log (it rebooted): what the old one held
             // behind its gaps ends its file, and a new file begins.
+            let end = d.highest().unwrap_or(0);
             let mut ending = Acts::default();
             d.finish(&mut ending);
             *d = Dataflash::new();
             d.block(seqno, &data, now, &mut acts);
+            active.earlier = Some(Earlier {
+                end,
+                until: now + DRAIN,
+            });
             self.finish_acts(ending, component);
             self.push_write(LogWrite::End);
             self.begin(Protocol::Dataflash);
@@ -403,16 +442,35 @@ impl FlightLogger {
         else {
             return self.late(Protocol::Ulog, now);
         };
-        active.start_again = now + START_AGAIN;
-        let restarted = std::mem::take(&mut active.restarted);
         let Stream::Ulog(u) = &mut active.stream else {
             return;
         };
+        if let (Some(earlier), Some(expected)) = (active.earlier, u.expected()) {
+            let end = earlier.end as u16;
+            let distance = chunk
+                .sequence
+                .wrapping_sub(end)
+                .min(end.wrapping_sub(chunk.sequence));
+            // Behind the new log's next (a chunk sent again) opens no gap.
+            let gap = chunk.sequence.wrapping_sub(expected);
+            let gap = if gap >= 0x8000 { 0 } else { gap };
+            if earlier.claims(now, u32::from(distance), u32::from(gap)) {
+                self.counters.late += 1;
+                return;
+            }
+        }
+        active.start_again = now + START_AGAIN;
+        let restarted = std::mem::take(&mut active.restarted);
         let mut acts = UlogActs::default();
         if restarted && chunk.sequence == 0 && u.started() {
             // The autopilot answered the start asked again with a new log.
+            let end = u.expected().unwrap_or(0).wrapping_sub(1);
             *u = Ulog::new();
             u.chunk(&chunk, &mut acts);
+            active.earlier = Some(Earlier {
+                end: u32::from(end),
+                until: now + DRAIN,
+            });
             self.push_write(LogWrite::End);
             self.begin(Protocol::Ulog);
         } else {

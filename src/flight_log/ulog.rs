@@ -53,6 +53,11 @@ impl Ulog {
         self.expected.is_some()
     }
 
+    /// The sequence number expected next, once a chunk was taken.
+    pub(crate) fn expected(&self) -> Option<u16> {
+        self.expected
+    }
+
     /// Takes `chunk`.
     pub(crate) fn chunk(&mut self, chunk: &UlogChunk, acts: &mut UlogActs) {
         if let Some(expected) = self.expected {

@@ -641,3 +641,105 @@ fn blocks_held_behind_a_gap_end_the_file_when_the_log_stops() {
     let (c, _) = v.e.flight_log_counters().expect("configured");
     assert_eq!((c.blocks, c.lost), (9, 1));
 }
+
+#[test]
+fn a_block_of_the_log_before_still_on_its_way_stays_out_of_the_new_file() {
+    let mut v = Vehicle::new(
+        "udp { port 14550; }\nflight_log { system 1; mode always; }\ndefault_action accept;\n",
+    );
+    v.from(AUTOPILOT, &heartbeat(3, false));
+    for s in 0..1100 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    v.writes();
+    v.statuses();
+    // The autopilot rebooted: its new log's block 0, then one of the old log's last
+    // blocks, reordered behind it, then the new log goes on.
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    v.from(AUTOPILOT, &block(1100, "245.190"));
+    v.from(AUTOPILOT, &block(1, "245.190"));
+    v.from(AUTOPILOT, &block(2, "245.190"));
+    let writes = v.writes();
+    let begins = writes
+        .iter()
+        .filter(|w| matches!(w, LogWrite::Begin(_)))
+        .count();
+    assert_eq!(
+        (writes[0].clone(), begins),
+        (LogWrite::End, 1),
+        "{writes:?}"
+    );
+    assert_eq!(data(&writes).0, expected(0..3), "only the new log's blocks");
+    assert_eq!(
+        v.statuses(),
+        [(0, 1), (1, 1), (2, 1)],
+        "the old block is not acked"
+    );
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!((c.late, c.lost, c.logs), (1, 0, 2));
+    // Two seconds on, a block that far ahead is the new log's own gap again.
+    v.wait(Duration::from_millis(2100));
+    v.from(AUTOPILOT, &heartbeat(3, false));
+    v.from(AUTOPILOT, &block(1101, "245.190"));
+    assert!(v.statuses().contains(&(1101, 1)));
+}
+
+#[test]
+fn a_block_of_a_short_log_before_is_not_held_for_the_new_one() {
+    // The log before had 20 blocks: its block 20, still on its way, would otherwise wait
+    // in the new log's order and be written in place of the new block 20.
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    for s in 0..20 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    v.wait(Duration::from_millis(1100));
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    v.writes();
+    v.statuses();
+    // Its bytes differ from the new log's block 20.
+    let mut p = 20u32.to_le_bytes().to_vec();
+    p.extend_from_slice(&[245, 190]);
+    p.extend_from_slice(&[0xEE; 200]);
+    let stale = encode("1.1", 184, &p);
+    v.from(AUTOPILOT, &stale);
+    for s in 1..=21 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    assert_eq!(
+        data(&v.writes()).0,
+        expected(0..22)[200..],
+        "blocks 1 to 21, in order"
+    );
+    assert!(
+        !v.statuses().iter().any(|&(_, status)| status == 0),
+        "nothing NACKed"
+    );
+}
+
+#[test]
+fn a_chunk_of_the_px4_log_before_stays_out_of_the_new_file() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    for s in 0..300 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    v.wait(Duration::from_millis(1100));
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    v.writes();
+    // Answered from chunk 0 (a new log); a chunk of the old one comes late.
+    v.from(AUTOPILOT, &ulog_chunk(0));
+    v.from(AUTOPILOT, &ulog_chunk(300));
+    for s in 1..4 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    let writes = v.writes();
+    assert_eq!(
+        writes[..2],
+        [LogWrite::End, LogWrite::Begin(Protocol::Ulog)]
+    );
+    assert_eq!(data(&writes).0, ulog_bytes(0..4), "the new log whole");
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!((c.late, c.lost, c.duplicates), (1, 0, 0));
+}
