@@ -291,9 +291,7 @@ impl Driver for UdpDriver {
             }
             if single {
                 // Two datagrams close together: a burst begins.
-                self.batching = self
-                    .last_single
-                    .is_some_and(|last| now.saturating_since(last) < BURST_GAP);
+                self.batching = self.last_single.is_some_and(|last| now < last + BURST_GAP);
                 self.last_single = Some(now);
                 return Progress::Done;
             }

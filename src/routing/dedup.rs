@@ -87,9 +87,7 @@ impl Dedup {
             return false;
         };
         self.expire(now, window);
-        self.latest
-            .get(&hash)
-            .is_some_and(|&t| now.saturating_since(t) <= window)
+        self.latest.get(&hash).is_some_and(|&t| now <= t + window)
     }
 
     /// Notes that a frame of hash `hash` was taken in at `now`.
@@ -119,7 +117,7 @@ impl Dedup {
     /// Forgets the hashes older than the window.
     fn expire(&mut self, now: Timestamp, window: Duration) {
         while let Some(&(t, _)) = self.ring.front() {
-            if now.saturating_since(t) <= window {
+            if now <= t + window {
                 break;
             }
             self.pop_oldest();

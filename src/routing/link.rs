@@ -136,7 +136,6 @@ impl Link {
     /// last address expired at `last_learned + expiry`, so it goes once `now` is more than
     /// twice the expiry after the last learning (present at exactly that time, gone after).
     pub(crate) fn is_stale(&self, now: Timestamp) -> bool {
-        self.kind == LinkKind::Udp
-            && now.saturating_since(self.last_learned) > self.pool.expiry().saturating_mul(2)
+        self.kind == LinkKind::Udp && now > self.last_learned + self.pool.expiry().saturating_mul(2)
     }
 }

@@ -38,8 +38,7 @@ impl AddressPool {
 
     #[inline]
     fn live(&self, e: &Entry, now: Timestamp) -> bool {
-        e.last_seen
-            .is_none_or(|seen| now.saturating_since(seen) <= self.expiry)
+        e.last_seen.is_none_or(|seen| now <= seen + self.expiry)
     }
 
     /// Records that `address` sent something at `now`. True if it was not present (never
@@ -106,10 +105,8 @@ impl AddressPool {
     /// Forgets the addresses expired at `now`.
     pub fn prune(&mut self, now: Timestamp) {
         let expiry = self.expiry;
-        self.entries.retain(|e| {
-            e.last_seen
-                .is_none_or(|s| now.saturating_since(s) <= expiry)
-        });
+        self.entries
+            .retain(|e| e.last_seen.is_none_or(|s| now <= s + expiry));
     }
 
     /// How long learned addresses last.

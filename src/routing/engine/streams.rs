@@ -30,9 +30,7 @@ impl Engine {
         interface.parser.clear();
         if let Kind::Stream { reopen, .. } = &mut interface.kind
             && let Some(since) = reopen.down_since.take()
-            && reopen
-                .forget_after
-                .is_some_and(|limit| now.saturating_since(since) > limit)
+            && reopen.forget_after.is_some_and(|limit| now > since + limit)
             && let Some(link) = link
         {
             self.core.router.clear_queue(link);
