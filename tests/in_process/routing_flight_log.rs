@@ -447,8 +447,8 @@ fn ulog_bytes(seqs: std::ops::Range<u16>) -> Vec<u8> {
     out
 }
 
-#[test]
-fn a_sequence_that_starts_again_mid_stream_is_a_new_file() {
+/// A vehicle whose autopilot has streamed blocks 0 to 1099 of a log (written out).
+fn after_a_long_log() -> Vehicle {
     let mut v = Vehicle::new(
         "udp { port 14550; }\nflight_log { system 1; mode always; }\ndefault_action accept;\n",
     );
@@ -457,6 +457,12 @@ fn a_sequence_that_starts_again_mid_stream_is_a_new_file() {
         v.from(AUTOPILOT, &block(s, "245.190"));
     }
     v.writes();
+    v
+}
+
+#[test]
+fn a_sequence_that_starts_again_mid_stream_is_a_new_file() {
+    let mut v = after_a_long_log();
     v.from(AUTOPILOT, &block(0, "245.190"));
     let writes = v.writes();
     assert_eq!(writes[0], LogWrite::End);
@@ -644,14 +650,7 @@ fn blocks_held_behind_a_gap_end_the_file_when_the_log_stops() {
 
 #[test]
 fn a_block_of_the_log_before_still_on_its_way_stays_out_of_the_new_file() {
-    let mut v = Vehicle::new(
-        "udp { port 14550; }\nflight_log { system 1; mode always; }\ndefault_action accept;\n",
-    );
-    v.from(AUTOPILOT, &heartbeat(3, false));
-    for s in 0..1100 {
-        v.from(AUTOPILOT, &block(s, "245.190"));
-    }
-    v.writes();
+    let mut v = after_a_long_log();
     v.statuses();
     // The autopilot rebooted: its new log's block 0, then one of the old log's last
     // blocks, reordered behind it, then the new log goes on.
