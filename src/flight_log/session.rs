@@ -27,7 +27,9 @@ pub const STOP_AGAIN: Duration = Duration::from_secs(1);
 /// the log for this long; then its file is closed.
 pub const DRAIN: Duration = Duration::from_secs(2);
 /// A block of the log before, still on its way when the autopilot began a new one, lies
-/// at most this many blocks (ulog chunks) from where that log had got to.
+/// at most this many blocks (ulog chunks) from where that log had got to; and a block
+/// more than this many ahead of a new log in its first `DRAIN` is not one of its own
+/// (that many would have had to be lost in a row).
 pub const EARLIER_SPAN: u32 = 256;
 /// Most bytes waiting for the writer (taken every loop turn): beyond, blocks are
 /// dropped and counted.
@@ -104,12 +106,14 @@ struct Earlier {
 
 impl Earlier {
     /// True when a block `distance` away from the earlier log's end, which would open a
-    /// gap of `gap` blocks in the new log, is taken for the earlier log's: it lies
-    /// nearer to where that log got to than to where the new one is. Such a block is
-    /// neither acknowledged nor written (an ArduPilot sends a block of its own again
-    /// until it is acknowledged, so a block misjudged this way comes again).
+    /// gap of `gap` blocks in the new log, is taken for the earlier log's: it lies near
+    /// where that log got to and far beyond where the new one is. Such a block is not
+    /// written. The new log's own blocks never come that far ahead, so this cannot
+    /// feed on itself: a gap in the new log short of `EARLIER_SPAN` is the new log's.
+    /// A block of a short earlier log, within that span of the new one, is not told
+    /// apart.
     fn claims(&self, now: Timestamp, distance: u32, gap: u32) -> bool {
-        now < self.until && gap > 0 && distance <= EARLIER_SPAN && distance < gap
+        now < self.until && distance <= EARLIER_SPAN && gap > EARLIER_SPAN
     }
 }
 

@@ -684,37 +684,57 @@ fn a_block_of_the_log_before_still_on_its_way_stays_out_of_the_new_file() {
 }
 
 #[test]
-fn a_block_of_a_short_log_before_is_not_held_for_the_new_one() {
-    // The log before had 20 blocks: its block 20, still on its way, would otherwise wait
-    // in the new log's order and be written in place of the new block 20.
+fn a_gap_in_a_new_log_near_where_the_log_before_ended_is_the_new_logs_own() {
+    // The log before got to block 99; the new one loses 40 to 70. Block 71 lies nearer
+    // to 99 than to 40, and is still the new log's: acknowledged, the gap asked for.
     let mut v = Vehicle::new(CONF);
     v.from(AUTOPILOT, &heartbeat(3, true));
-    for s in 0..20 {
+    for s in 0..100 {
         v.from(AUTOPILOT, &block(s, "245.190"));
     }
     v.wait(Duration::from_millis(1100));
     v.from(AUTOPILOT, &heartbeat(3, true));
-    v.from(AUTOPILOT, &block(0, "245.190"));
     v.writes();
     v.statuses();
-    // Its bytes differ from the new log's block 20.
-    let mut p = 20u32.to_le_bytes().to_vec();
-    p.extend_from_slice(&[245, 190]);
-    p.extend_from_slice(&[0xEE; 200]);
-    let stale = encode("1.1", 184, &p);
-    v.from(AUTOPILOT, &stale);
-    for s in 1..=21 {
+    for s in (0..40).chain(71..81) {
         v.from(AUTOPILOT, &block(s, "245.190"));
     }
-    assert_eq!(
-        data(&v.writes()).0,
-        expected(0..22)[200..],
-        "blocks 1 to 21, in order"
-    );
+    let statuses = v.statuses();
     assert!(
-        !v.statuses().iter().any(|&(_, status)| status == 0),
-        "nothing NACKed"
+        statuses.contains(&(71, 1)) && statuses.contains(&(40, 0)),
+        "{statuses:?}"
     );
+    for s in 40..71 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    let writes = v.writes();
+    assert_eq!(
+        writes[..2],
+        [LogWrite::End, LogWrite::Begin(Protocol::Dataflash)]
+    );
+    assert_eq!(data(&writes).0, expected(0..81));
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!(c.late, 0);
+}
+
+#[test]
+fn a_gap_in_a_new_px4_log_near_where_the_log_before_ended_is_the_new_logs_own() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    for s in 0..100 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    v.wait(Duration::from_millis(1100));
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    v.writes();
+    for s in (0..40).chain(71..81) {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    let mut want = ulog_bytes(0..40);
+    want.extend_from_slice(&ulog_bytes(71..81));
+    assert_eq!(data(&v.writes()).0, want);
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!((c.late, c.lost), (0, 31));
 }
 
 #[test]
