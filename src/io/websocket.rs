@@ -118,7 +118,8 @@ fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static st
 /// upgrade — a browser opening the port as a page — or asks for another WebSocket
 /// version; 405 to another method; 400 to anything else that is not a valid upgrade
 /// request. `None` when no request was refused (the connection failed or closed, or
-/// the origin check answered already).
+/// the origin check answered already). The 405 has no body: it may answer a `HEAD`,
+/// whose answer must have none.
 fn refusal(e: &WsError) -> Option<(&'static str, String)> {
     let (status, headers) = match e {
         WsError::Protocol(
@@ -144,7 +145,10 @@ fn refusal(e: &WsError) -> Option<(&'static str, String)> {
         }
         _ => ("400 Bad Request", ""),
     };
-    let body = "This port speaks WebSocket: MAVLink frames in binary messages.\n";
+    let body = match e {
+        WsError::Protocol(ProtocolError::WrongHttpMethod) => "",
+        _ => "This port speaks WebSocket: MAVLink frames in binary messages.\n",
+    };
     Some((
         status,
         format!(

@@ -396,6 +396,13 @@ fn a_request_that_is_not_an_upgrade_is_answered() {
         "{post:?}"
     );
     assert!(post.contains("\r\nAllow: GET\r\n"), "{post:?}");
+    // The answer to a HEAD has no body (RFC 9110 9.3.2).
+    let head = answer_to(port, "HEAD / HTTP/1.1\r\nHost: x\r\n\r\n");
+    assert!(
+        head.starts_with("HTTP/1.1 405 ")
+            && head.ends_with("Content-Length: 0\r\nConnection: close\r\n\r\n"),
+        "{head:?}"
+    );
     let junk = answer_to(port, "hello\r\n\r\n");
     assert!(junk.starts_with("HTTP/1.1 400 Bad Request\r\n"), "{junk:?}");
     let line = router
