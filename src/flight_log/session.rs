@@ -105,6 +105,14 @@ struct Earlier {
 }
 
 impl Earlier {
+    /// The log before, which got to `end`, replaced at `now`.
+    fn ended(end: u32, now: Timestamp) -> Self {
+        Earlier {
+            end,
+            until: now + DRAIN,
+        }
+    }
+
     /// True when a block `distance` away from the earlier log's end, which would open a
     /// gap of `gap` blocks in the new log, is taken for the earlier log's: it lies near
     /// where that log got to and far beyond where the new one is. Such a block is not
@@ -400,10 +408,7 @@ impl FlightLogger {
             d.finish(&mut ending);
             *d = Dataflash::new();
             d.block(seqno, &data, now, &mut acts);
-            active.earlier = Some(Earlier {
-                end,
-                until: now + DRAIN,
-            });
+            active.earlier = Some(Earlier::ended(end, now));
             self.finish_acts(ending, component);
             self.push_write(LogWrite::End);
             self.begin(Protocol::Dataflash);
@@ -471,10 +476,7 @@ impl FlightLogger {
             let end = u.expected().unwrap_or(0).wrapping_sub(1);
             *u = Ulog::new();
             u.chunk(&chunk, &mut acts);
-            active.earlier = Some(Earlier {
-                end: u32::from(end),
-                until: now + DRAIN,
-            });
+            active.earlier = Some(Earlier::ended(u32::from(end), now));
             self.push_write(LogWrite::End);
             self.begin(Protocol::Ulog);
         } else {

@@ -121,19 +121,23 @@ fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static st
 /// the origin check answered already). The 405 has no body: it may answer a `HEAD`,
 /// whose answer must have none.
 fn refusal(e: &WsError) -> Option<(&'static str, String)> {
-    let (status, headers) = match e {
+    const BODY: &str = "This port speaks WebSocket: MAVLink frames in binary messages.\n";
+    let (status, headers, body) = match e {
         WsError::Protocol(
             ProtocolError::MissingUpgradeWebSocketHeader
             | ProtocolError::MissingConnectionUpgradeHeader,
         ) => (
             "426 Upgrade Required",
             "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n",
+            BODY,
         ),
-        WsError::Protocol(ProtocolError::MissingSecWebSocketVersionHeader) => {
-            ("426 Upgrade Required", "Sec-WebSocket-Version: 13\r\n")
-        }
+        WsError::Protocol(ProtocolError::MissingSecWebSocketVersionHeader) => (
+            "426 Upgrade Required",
+            "Sec-WebSocket-Version: 13\r\n",
+            BODY,
+        ),
         WsError::Protocol(ProtocolError::WrongHttpMethod) => {
-            ("405 Method Not Allowed", "Allow: GET\r\n")
+            ("405 Method Not Allowed", "Allow: GET\r\n", "")
         }
         // The peer ended before its request was whole (a port scan, a health check).
         WsError::Protocol(ProtocolError::HandshakeIncomplete)
@@ -143,11 +147,7 @@ fn refusal(e: &WsError) -> Option<(&'static str, String)> {
         | WsError::Http(_) => {
             return None;
         }
-        _ => ("400 Bad Request", ""),
-    };
-    let body = match e {
-        WsError::Protocol(ProtocolError::WrongHttpMethod) => "",
-        _ => "This port speaks WebSocket: MAVLink frames in binary messages.\n",
+        _ => ("400 Bad Request", "", BODY),
     };
     Some((
         status,
