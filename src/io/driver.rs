@@ -70,6 +70,15 @@ pub trait Driver {
         false
     }
 
+    /// After it reported [`Progress::Lost`]: true if it still has last words for the
+    /// peer (why the connection ends: an HTTP error's answer, a WebSocket Close frame).
+    /// The loop then ends it as at shutdown, through [`Driver::shut_write`] and
+    /// [`Driver::linger`], rather than closing it at once: closed with the peer's bytes
+    /// unread, the socket would be reset, and the reset may discard those words.
+    fn parting(&self) -> bool {
+        false
+    }
+
     /// After [`Driver::shut_write`]: reads and drops what the peer still sends; true
     /// once closing loses nothing here (the peer's system acknowledged everything, the
     /// peer ended, or the connection failed).

@@ -283,6 +283,21 @@ impl Runtime {
         slot.watching_writes = false;
     }
 
+    /// Slot `key`'s driver reported its device lost: it is closed now, or, if it still
+    /// has something to tell its peer ([`Driver::parting`]), once that is out (for
+    /// [`CLOSE_FLUSH`] at most).
+    #[cold]
+    #[inline(never)]
+    fn lost(&mut self, key: usize) {
+        if self.slots.get(key).is_some_and(|s| s.driver.parting()) {
+            let until = self.now() + CLOSE_FLUSH;
+            if self.begin_linger(key, until) {
+                return;
+            }
+        }
+        self.close(key);
+    }
+
     /// Reads `key` this turn (again).
     fn mark_readable(&mut self, key: usize) {
         if let Some(slot) = self.slots.get_mut(key)
@@ -336,7 +351,7 @@ impl Runtime {
         }
         match progress {
             Progress::More => self.mark_readable(key),
-            Progress::Lost => self.close(key),
+            Progress::Lost => self.lost(key),
             Progress::Done | Progress::Blocked => {}
         }
         // A connection that closed is taken out of the loop now, before another one
@@ -589,7 +604,7 @@ impl Runtime {
             return;
         };
         if progress == Progress::Lost {
-            self.close(key);
+            self.lost(key);
             return;
         }
         let blocked = progress == Progress::Blocked;
@@ -694,7 +709,7 @@ impl Runtime {
             match slot.driver.deadline() {
                 Some(due) if now >= due => {
                     if slot.driver.expire(&mut self.engine, now) == Progress::Lost {
-                        self.close(key);
+                        self.lost(key);
                         return false;
                     }
                     true

@@ -335,22 +335,45 @@ impl Driver for TcpStreamDriver {
     }
 
     fn linger(&mut self) -> bool {
-        self.stream.as_mut().is_none_or(linger_on)
+        self.stream.as_ref().is_none_or(linger_on)
     }
 }
 
 /// Reads and drops what `stream` has (a bounded amount); true once closing it loses
 /// nothing: everything sent was acknowledged, or the peer ended, or it failed.
-pub(super) fn linger_on(stream: &mut TcpStream) -> bool {
-    let mut scratch = [0u8; 4096];
-    for _ in 0..16 {
+pub(super) fn linger_on(stream: &TcpStream) -> bool {
+    drain(stream) == Input::Ended || all_acknowledged(stream)
+}
+
+/// True if the peer's system has acknowledged everything sent on `stream` (or that
+/// cannot be known).
+pub(super) fn all_acknowledged(stream: &TcpStream) -> bool {
+    !matches!(sys::unacknowledged_bytes(stream), Ok(n) if n > 0)
+}
+
+/// What reading and dropping the input of a stream that lingers found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Input {
+    /// Nothing had arrived.
+    Quiet,
+    /// Bytes had arrived (read and dropped; more may be waiting).
+    Flowing,
+    /// The peer ended, or the connection failed.
+    Ended,
+}
+
+/// Reads and drops what `stream` has (a bounded amount).
+pub(super) fn drain(mut stream: &TcpStream) -> Input {
+    let mut scratch = [0u8; 16 * 1024];
+    let mut input = Input::Quiet;
+    for _ in 0..64 {
         match stream.read(&mut scratch) {
-            Ok(0) => return true,
-            Ok(_) => {}
+            Ok(0) => return Input::Ended,
+            Ok(_) => input = Input::Flowing,
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(_) => return true,
+            Err(_) => return Input::Ended,
         }
     }
-    !matches!(sys::unacknowledged_bytes(stream), Ok(n) if n > 0)
+    input
 }

@@ -13,6 +13,12 @@
 //!   does a browser's request from an origin the block does not name (answered 403),
 //!   and a request that is not a WebSocket upgrade (answered 426, 405 or 400: see
 //!   [`refusal`]).
+//! - A connection closed for an error still tells the peer why: the loop lets it
+//!   linger ([`Driver::parting`]), reading and dropping what the peer still sends, until
+//!   its Close frame is acknowledged and the peer has stopped sending, or until the peer
+//!   of a refused request has ended (see [`Until`]). Closed at once, with the peer's
+//!   bytes unread, it would be reset, and the reset may discard the answer or make the
+//!   peer fail in the middle of a send, before reading it.
 //! - Output is taken from the core a few frames at a time, only once what was taken
 //!   before has been written: a client that never reads is held back by the core's
 //!   per-link queue, as a TCP client is; the driver never buffers more.
@@ -21,9 +27,10 @@
 
 use std::collections::VecDeque;
 use std::io;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::os::fd::{AsRawFd, RawFd};
+use std::rc::Rc;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -37,7 +44,7 @@ use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::{Message, Utf8Bytes, WebSocket};
 
 use super::driver::{Driver, Progress};
-use super::tcp::TcpListenerDriver;
+use super::tcp::{self, Input, TcpListenerDriver};
 use crate::config::WebSocketInterface;
 use crate::routing::{Engine, InterfaceId, Timestamp, Transmit};
 
@@ -96,21 +103,35 @@ impl Callback for OriginCheck {
     }
 }
 
+/// The connection's socket as tungstenite holds it. The driver keeps a handle of its
+/// own: a failed handshake consumes tungstenite's, and the driver still answers and
+/// ends the connection on the socket, whose descriptor the loop watches.
+struct Socket(Rc<TcpStream>);
+
+impl Read for Socket {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        (&*self.0).read(buf)
+    }
+}
+
+impl Write for Socket {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        (&*self.0).write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        (&*self.0).flush()
+    }
+}
+
 /// Queues a Close frame of `code` saying why the connection ends; it goes out with the
 /// next flush.
-fn start_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
+fn start_close(ws: &mut WebSocket<Socket>, code: CloseCode, reason: &'static str) {
     let frame = CloseFrame {
         code,
         reason: Utf8Bytes::from_static(reason),
     };
     let _ = ws.close(Some(frame));
-}
-
-/// Tells the peer why its connection ends, with a Close frame of `code` (sent as far as
-/// the socket takes it now: the connection is closed next either way).
-fn say_close(ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &'static str) {
-    start_close(ws, code, reason);
-    let _ = ws.flush();
 }
 
 /// The HTTP answer to a request the handshake refused, with its status: 426 (with
@@ -173,13 +194,52 @@ fn ws_config() -> WebSocketConfig {
 /// Where a connection is.
 enum State {
     /// Accepted; the handshake starts at the first `receive`.
-    Accepted(TcpStream, OriginCheck),
-    /// The HTTP upgrade is under way.
-    Handshake(MidHandshake<ServerHandshake<TcpStream, OriginCheck>>),
+    Accepted(Rc<TcpStream>, OriginCheck),
+    /// The HTTP upgrade is under way (with the driver's handle on the socket).
+    Handshake(
+        MidHandshake<ServerHandshake<Socket, OriginCheck>>,
+        Rc<TcpStream>,
+    ),
     /// Messages flow.
-    Open(WebSocket<TcpStream>),
+    Open(WebSocket<Socket>),
+    /// Its Close frame waits in tungstenite's buffer for room in the socket: the
+    /// sending side is shut once it is out. What the peer sends meanwhile is read and
+    /// dropped.
+    Closing(WebSocket<Socket>, Until),
+    /// The sending side is shut: what the peer still sends is read and dropped until it
+    /// may close.
+    Shut(Rc<TcpStream>, Until),
     /// Closed, or its handshake failed.
     Gone,
+}
+
+/// When a connection whose sending side is shut may close (within the loop's limit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Until {
+    /// Once everything sent is acknowledged, even if the peer still sends (at shutdown,
+    /// after a reload removed the block, or after the peer's own Close).
+    Acknowledged,
+    /// Once everything sent is acknowledged and nothing arrived since the last look:
+    /// after a Close for an error, as the peer may still be sending the message that
+    /// caused it, blocked until its bytes are read.
+    Quiet,
+    /// Once the peer ends: after an HTTP error answer, whose request may still have a
+    /// body on its way.
+    Ended,
+}
+
+impl Until {
+    /// Reads and drops what the peer sent since the last look; true once `socket` may
+    /// close.
+    fn reached(self, socket: &TcpStream) -> bool {
+        match (self, tcp::drain(socket)) {
+            (_, Input::Ended) => true,
+            (Until::Ended, _) | (Until::Quiet, Input::Flowing) => false,
+            (Until::Acknowledged, _) | (Until::Quiet, Input::Quiet) => {
+                tcp::all_acknowledged(socket)
+            }
+        }
+    }
 }
 
 /// One accepted WebSocket connection: one link of the core.
@@ -195,13 +255,6 @@ pub struct WebSocketDriver {
     failed: Option<io::Error>,
     /// Scratch for [`Engine::poll_transmit`].
     next: VecDeque<Transmit>,
-    /// Its Close frame (see [`Driver::shut_write`]) waits in tungstenite's buffer for
-    /// room in the socket: the sending side is shut once it is out.
-    closing: bool,
-    /// A second handle on the socket while the handshake runs: tungstenite takes the
-    /// stream and answers only what the origin check refuses, so the HTTP error for
-    /// any other refused request goes out through this one.
-    answer: Option<TcpStream>,
 }
 
 impl WebSocketDriver {
@@ -215,25 +268,24 @@ impl WebSocketDriver {
         WebSocketDriver {
             interface,
             fd: stream.as_raw_fd(),
-            state: State::Accepted(stream, check),
+            state: State::Accepted(Rc::new(stream), check),
             deadline: Some(now + HANDSHAKE_LIMIT),
             unflushed: false,
             failed: None,
             next: VecDeque::with_capacity(FRAMES_PER_WRITE),
-            closing: false,
-            answer: None,
         }
     }
 
     /// Drives the handshake: `Done` while it is under way (or once it is done and the
     /// first messages read), `Lost` if it failed.
     fn handshake(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
-        let result = match std::mem::replace(&mut self.state, State::Gone) {
-            State::Accepted(stream, check) => {
-                self.answer = stream.try_clone().ok();
-                tungstenite::accept_hdr_with_config(stream, check, Some(ws_config()))
+        let (result, socket) = match std::mem::replace(&mut self.state, State::Gone) {
+            State::Accepted(socket, check) => {
+                let theirs = Socket(Rc::clone(&socket));
+                let result = tungstenite::accept_hdr_with_config(theirs, check, Some(ws_config()));
+                (result, socket)
             }
-            State::Handshake(mid) => mid.handshake(),
+            State::Handshake(mid, socket) => (mid.handshake(), socket),
             other => {
                 self.state = other;
                 return Progress::Done;
@@ -243,46 +295,86 @@ impl WebSocketDriver {
             Ok(ws) => {
                 self.state = State::Open(ws);
                 self.deadline = None;
-                self.answer = None;
                 // What the core queued for it can go now; messages may have come
                 // with the request.
                 engine.stream_opened(self.interface, now);
                 self.read(engine, now)
             }
             Err(HandshakeError::Interrupted(mid)) => {
-                self.state = State::Handshake(mid);
+                self.state = State::Handshake(mid, socket);
                 Progress::Done
             }
+            // tungstenite has answered 403.
             Err(HandshakeError::Failure(WsError::Http(r)))
                 if r.status() == StatusCode::FORBIDDEN =>
             {
                 let why =
                     "WebSocket handshake refused: the page's origin is not one the block allows";
-                self.lose(engine, now, Some(why.to_string()))
+                self.report(engine, now, Some(why.to_string()));
+                self.refused(socket)
             }
-            Err(HandshakeError::Failure(e)) => {
-                let answered = match (self.answer.take(), refusal(&e)) {
-                    (Some(mut answer), Some((status, text))) => {
-                        // A few hundred bytes into an empty send buffer; then the end.
-                        let _ = answer.write_all(text.as_bytes());
-                        let _ = answer.shutdown(Shutdown::Write);
-                        format!(" (answered {status})")
-                    }
-                    _ => String::new(),
-                };
-                self.lose(
+            Err(HandshakeError::Failure(e)) => match refusal(&e) {
+                Some((status, text)) => {
+                    // A few hundred bytes into an empty send buffer.
+                    let _ = (&*socket).write_all(text.as_bytes());
+                    let why = format!("WebSocket handshake failed: {e} (answered {status})");
+                    self.report(engine, now, Some(why));
+                    self.refused(socket)
+                }
+                None => self.lose(
                     engine,
                     now,
-                    Some(format!("WebSocket handshake failed: {e}{answered}")),
-                )
-            }
+                    Some(format!("WebSocket handshake failed: {e}")),
+                ),
+            },
         }
     }
 
-    /// Reports the connection lost: an error (logged and counted) or a normal end.
+    /// Ends a connection whose request was answered with an HTTP error: the end follows
+    /// the answer, and the loop lets it linger until the peer ends too.
+    fn refused(&mut self, socket: Rc<TcpStream>) -> Progress {
+        self.deadline = None;
+        self.state = match socket.shutdown(Shutdown::Write) {
+            Ok(()) => State::Shut(socket, Until::Ended),
+            Err(_) => State::Gone,
+        };
+        Progress::Lost
+    }
+
+    /// Ends an open connection for an error (reported to the core): a Close frame of
+    /// `code` says why, and what of it the socket does not take now goes out while the
+    /// loop lets the connection linger.
+    fn part(
+        &mut self,
+        engine: &mut Engine,
+        now: Timestamp,
+        (code, reason): (CloseCode, &'static str),
+        why: String,
+    ) -> Progress {
+        self.report(engine, now, Some(why));
+        self.state = match std::mem::replace(&mut self.state, State::Gone) {
+            State::Open(mut ws) => {
+                start_close(&mut ws, code, reason);
+                // As far as the socket takes it now; the rest while it lingers.
+                let _ = ws.flush();
+                State::Closing(ws, Until::Quiet)
+            }
+            _ => State::Gone,
+        };
+        Progress::Lost
+    }
+
+    /// Reports the connection lost, and closes it: an error (logged and counted) or a
+    /// normal end.
     fn lose(&mut self, engine: &mut Engine, now: Timestamp, error: Option<String>) -> Progress {
         self.state = State::Gone;
-        self.answer = None;
+        self.report(engine, now, error);
+        Progress::Lost
+    }
+
+    /// Tells the core the connection is lost: an error (logged and counted) or a normal
+    /// end.
+    fn report(&mut self, engine: &mut Engine, now: Timestamp, error: Option<String>) {
         match error {
             Some(why) => {
                 engine.on_receive_failed(self.interface, &io::Error::other(why.clone()));
@@ -290,7 +382,6 @@ impl WebSocketDriver {
             }
             None => engine.stream_lost(self.interface, now, &"closed"),
         }
-        Progress::Lost
     }
 
     /// Reads what an open connection has (a bounded number of messages).
@@ -305,11 +396,8 @@ impl WebSocketDriver {
                 Ok(Message::Text(text)) => engine.stream_junk(id, text.len()),
                 // Pings are answered by tungstenite; pongs need nothing.
                 Ok(Message::Ping(_) | Message::Pong(_) | Message::Frame(_)) => {}
-                Ok(Message::Close(_)) => {
-                    // tungstenite queued the reply; send it if the socket takes it now.
-                    let _ = ws.flush();
-                    return self.end(engine, now);
-                }
+                // tungstenite queued the reply.
+                Ok(Message::Close(_)) => return self.end(engine, now, true),
                 Err(WsError::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
                     return match self.failed.take() {
                         Some(e) => self.lose(engine, now, Some(format!("send failed: {e}"))),
@@ -321,36 +409,42 @@ impl WebSocketDriver {
                     WsError::ConnectionClosed
                     | WsError::AlreadyClosed
                     | WsError::Protocol(ProtocolError::ResetWithoutClosingHandshake),
-                ) => return self.end(engine, now),
+                ) => return self.end(engine, now, false),
                 Err(WsError::Capacity(e)) => {
-                    say_close(ws, CloseCode::Size, "message over 64 KiB");
-                    return self.lose(
-                        engine,
-                        now,
-                        Some(format!("message over {MAX_MESSAGE} bytes: {e}")),
-                    );
+                    let why = format!("message over {MAX_MESSAGE} bytes: {e}");
+                    return self.part(engine, now, (CloseCode::Size, "message over 64 KiB"), why);
                 }
-                Err(e) => {
-                    match &e {
-                        WsError::Protocol(_) => {
-                            say_close(ws, CloseCode::Protocol, "protocol error")
-                        }
-                        WsError::Utf8(_) => say_close(ws, CloseCode::Invalid, "text not UTF-8"),
-                        _ => {}
-                    }
-                    return self.lose(engine, now, Some(e.to_string()));
+                Err(e @ WsError::Protocol(_)) => {
+                    let close = (CloseCode::Protocol, "protocol error");
+                    return self.part(engine, now, close, e.to_string());
                 }
+                Err(e @ WsError::Utf8(_)) => {
+                    let close = (CloseCode::Invalid, "text not UTF-8");
+                    return self.part(engine, now, close, e.to_string());
+                }
+                Err(e) => return self.lose(engine, now, Some(e.to_string())),
             }
         }
         Progress::More
     }
 
-    /// The peer ended the connection: a failed write is what is reported, if any.
-    fn end(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
-        match self.failed.take() {
-            Some(e) => self.lose(engine, now, Some(format!("send failed: {e}"))),
-            None => self.lose(engine, now, None),
+    /// The peer ended the connection: a failed write is what is reported, if any. With
+    /// `reply`, it sent a Close frame, and the reply tungstenite queued goes out while
+    /// the connection lingers.
+    fn end(&mut self, engine: &mut Engine, now: Timestamp, reply: bool) -> Progress {
+        if let Some(e) = self.failed.take() {
+            return self.lose(engine, now, Some(format!("send failed: {e}")));
         }
+        self.report(engine, now, None);
+        self.state = match (reply, std::mem::replace(&mut self.state, State::Gone)) {
+            (true, State::Open(mut ws)) => {
+                // As far as the socket takes it now; the rest while it lingers.
+                let _ = ws.flush();
+                State::Closing(ws, Until::Acknowledged)
+            }
+            _ => State::Gone,
+        };
+        Progress::Lost
     }
 }
 
@@ -365,7 +459,6 @@ impl Driver for WebSocketDriver {
 
     fn close(&mut self) {
         self.state = State::Gone;
-        self.answer = None;
         self.deadline = None;
         self.unflushed = false;
         self.failed = None;
@@ -373,9 +466,9 @@ impl Driver for WebSocketDriver {
 
     fn receive(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         match self.state {
-            State::Accepted(..) | State::Handshake(_) => self.handshake(engine, now),
+            State::Accepted(..) | State::Handshake(..) => self.handshake(engine, now),
             State::Open(_) => self.read(engine, now),
-            State::Gone => Progress::Done,
+            State::Closing(..) | State::Shut(..) | State::Gone => Progress::Done,
         }
     }
 
@@ -389,7 +482,7 @@ impl Driver for WebSocketDriver {
                 State::Open(ws) => ws,
                 // Frames wait in the core until the handshake is done (`receive`
                 // drives it, and tells the core when it is).
-                State::Accepted(..) | State::Handshake(_) | State::Gone => return Progress::Done,
+                _ => return Progress::Done,
             };
             if self.unflushed {
                 match ws.flush() {
@@ -431,41 +524,59 @@ impl Driver for WebSocketDriver {
     }
 
     fn idle(&self) -> bool {
-        !self.unflushed || matches!(self.state, State::Gone)
+        !(self.unflushed && matches!(self.state, State::Open(_)))
     }
 
     fn shut_write(&mut self) -> bool {
-        let State::Open(ws) = &mut self.state else {
-            return false;
-        };
-        start_close(ws, CloseCode::Away, "the router closes this link");
-        self.closing = true;
-        true
+        match std::mem::replace(&mut self.state, State::Gone) {
+            State::Open(mut ws) => {
+                start_close(&mut ws, CloseCode::Away, "the router closes this link");
+                self.state = State::Closing(ws, Until::Acknowledged);
+                true
+            }
+            other => {
+                let parting = matches!(other, State::Closing(..) | State::Shut(..));
+                self.state = other;
+                parting
+            }
+        }
+    }
+
+    fn parting(&self) -> bool {
+        matches!(self.state, State::Closing(..) | State::Shut(..))
     }
 
     fn linger(&mut self) -> bool {
-        let State::Open(ws) = &mut self.state else {
-            return true;
-        };
-        if self.closing {
-            match ws.flush() {
-                Ok(()) => {}
-                Err(WsError::Io(e))
-                    if matches!(
-                        e.kind(),
-                        io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
-                    ) =>
-                {
-                    return false;
+        match &mut self.state {
+            State::Closing(ws, until) => {
+                // A peer blocked in a send reads the Close only once that send is done.
+                if tcp::drain(&ws.get_ref().0) == Input::Ended {
+                    return true;
                 }
-                Err(_) => return true,
+                match ws.flush() {
+                    // Out (the latter once a Close from the peer is answered).
+                    Ok(()) | Err(WsError::ConnectionClosed) => {}
+                    Err(WsError::Io(e))
+                        if matches!(
+                            e.kind(),
+                            io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+                        ) =>
+                    {
+                        return false;
+                    }
+                    Err(_) => return true,
+                }
+                let socket = Rc::clone(&ws.get_ref().0);
+                if socket.shutdown(Shutdown::Write).is_err() {
+                    return true;
+                }
+                // Looked at from the next call on: input has just been drained.
+                self.state = State::Shut(socket, *until);
+                false
             }
-            self.closing = false;
-            if ws.get_ref().shutdown(Shutdown::Write).is_err() {
-                return true;
-            }
+            State::Shut(socket, until) => until.reached(socket),
+            _ => true,
         }
-        super::tcp::linger_on(ws.get_mut())
     }
 
     fn deadline(&self) -> Option<Timestamp> {
@@ -473,7 +584,7 @@ impl Driver for WebSocketDriver {
     }
 
     fn expire(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
-        if !matches!(self.state, State::Accepted(..) | State::Handshake(_)) {
+        if !matches!(self.state, State::Accepted(..) | State::Handshake(..)) {
             self.deadline = None;
             return Progress::Done;
         }

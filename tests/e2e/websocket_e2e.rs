@@ -55,6 +55,22 @@ fn ws_client(port: u16) -> Client {
     ws
 }
 
+/// A client whose receive buffer is small, so the router's writes to it soon block (it
+/// has said a heartbeat from `sys`; its reads block).
+fn small_window_client(router: &mut Router, port: u16, sys: u8) -> Client {
+    let socket =
+        socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).expect("socket");
+    socket.set_recv_buffer_size(4096).expect("rcvbuf");
+    let addr: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().expect("addr");
+    socket.connect(&addr.into()).expect("connect");
+    let stream: TcpStream = socket.into();
+    let (mut ws, _) =
+        tungstenite::client(format!("ws://127.0.0.1:{port}/"), stream).expect("handshake");
+    ws.send(Message::binary(heartbeat(sys))).expect("send");
+    router.wait_for(&format!("new component {sys}.1 on ws:127.0.0.1:"));
+    ws
+}
+
 /// A client that has said a heartbeat from `sys` (seen by the router, on a `ws:` link).
 fn ws_join(router: &mut Router, port: u16, sys: u8) -> Client {
     let mut ws = ws_client(port);
@@ -241,6 +257,66 @@ fn an_oversized_message_closes_the_connection() {
     router.stop();
 }
 
+/// A client the router is behind with (its window is full) still learns why it is
+/// closed: the Close frame waits behind what the router has for it, and the router keeps
+/// the socket until it is out. Closed at once with the client's message unread, the
+/// connection would be reset, and the Close never sent.
+#[test]
+fn a_client_behind_on_reading_still_gets_its_close_frame() {
+    let s = Scratch::new("ws-behind");
+    let (mut router, udp, port) = router(&s, "", "queue { link_bytes 100000; }\n");
+    let v = vehicle(&mut router, udp, 1);
+    let mut stuck = small_window_client(&mut router, port, 30);
+    let name = link_name(&stuck);
+    // Frames until the router's writes block and its queue for the client overflows.
+    let mut n = 0;
+    eventually("the stuck client's queue overflows", 20 * SECOND, || {
+        for _ in 0..500 {
+            v.send(&numbered_large(1, n)).expect("send");
+            n += 1;
+        }
+        let c = counters(&mut router);
+        match c.link(&name) {
+            Some(l) if l.queue_drops > 0 => Ok(()),
+            _ => Err(c.text),
+        }
+    });
+    stuck
+        .send(Message::binary(vec![0u8; 64 * 1024 + 1]))
+        .expect("send");
+    router.err.wait_for("message over 65536 bytes", 10 * SECOND);
+    stuck
+        .get_ref()
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    assert_eq!(
+        close_code(&mut stuck, 5 * SECOND),
+        Some(1009),
+        "the Close frame did not come after the backlog"
+    );
+    router.stop();
+}
+
+/// A client still sending an oversized message when the router closes it (its send
+/// blocked until the router reads) completes the send, then reads the Close frame: the
+/// router reads and drops the rest of the message meanwhile. Closed under the client's
+/// bytes, the connection would be reset: the send fails, and the Close is never read.
+#[test]
+fn a_client_still_sending_an_oversized_message_reads_its_close_frame() {
+    let s = Scratch::new("ws-still-sending");
+    let (mut router, _, port) = router(&s, "", "");
+    let mut big = ws_join(&mut router, port, 200);
+    big.get_ref()
+        .set_write_timeout(Some(10 * SECOND))
+        .expect("timeout");
+    // More than the client's send buffer and the router's receive buffer can hold.
+    let sent = big.send(Message::binary(vec![0u8; 6 * MIB as usize]));
+    assert!(sent.is_ok(), "the send failed: {sent:?}");
+    assert_eq!(close_code(&mut big, 5 * SECOND), Some(1009));
+    router.err.wait_for("message over 65536 bytes", 5 * SECOND);
+    router.stop();
+}
+
 /// The code of the Close frame the router sends client `ws` within `timeout` (None: it
 /// closed without one, or not at all).
 fn close_code(ws: &mut Client, timeout: Duration) -> Option<u16> {
@@ -413,6 +489,38 @@ fn a_request_that_is_not_an_upgrade_is_answered() {
     router.stop();
 }
 
+/// A refused request's answer reaches a client that is still sending a body, and the
+/// connection ends cleanly: the router reads and drops the rest of the body until the
+/// client ends. Closed with the body unread, the connection would be reset: the
+/// client's send fails, and a client such as curl then reports the reset, not the answer.
+#[test]
+fn a_refused_request_with_a_body_is_answered_without_a_reset() {
+    const BODY: usize = 2 * 1024 * 1024;
+    let s = Scratch::new("ws-refused-body");
+    let (mut router, _, port) = router(&s, "", "");
+    let mut c = connect(&format!("127.0.0.1:{port}"));
+    c.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+    let mut writer = c.try_clone().expect("clone");
+    let sender = std::thread::spawn(move || {
+        let head = format!("POST / HTTP/1.1\r\nHost: x\r\nContent-Length: {BODY}\r\n\r\n");
+        writer.write_all(head.as_bytes())?;
+        writer.write_all(&vec![b'x'; BODY])?;
+        writer.shutdown(std::net::Shutdown::Write)
+    });
+    let mut answer = Vec::new();
+    let read = c.read_to_end(&mut answer);
+    let sent = sender.join().expect("sender");
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 405 "), "{answer:?}");
+    assert!(read.is_ok(), "the answer ended with {read:?}");
+    assert!(sent.is_ok(), "sending the body failed: {sent:?}");
+    router
+        .err
+        .wait_for("(answered 405 Method Not Allowed)", 5 * SECOND);
+    let _client = ws_join(&mut router, port, 5);
+    router.stop();
+}
+
 /// A client handshaking with `origin` as its `Origin` header (None: without one).
 fn ws_client_from(port: u16, origin: Option<&str>) -> tungstenite::Result<Client> {
     ws_client_with_origins(port, origin.as_slice())
@@ -567,20 +675,7 @@ fn a_client_that_never_reads_is_bounded_like_a_tcp_client() {
         router(&s, "", &format!("queue {{ link_bytes {LINK_BYTES}; }}\n"));
     let pid = router.pid();
     let v = vehicle(&mut router, udp, 1);
-    // The stuck client's receive buffer is small, so the router's writes soon block.
-    let stuck = {
-        let socket = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None)
-            .expect("socket");
-        socket.set_recv_buffer_size(4096).expect("rcvbuf");
-        let addr: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().expect("addr");
-        socket.connect(&addr.into()).expect("connect");
-        let stream: TcpStream = socket.into();
-        let (mut ws, _) =
-            tungstenite::client(format!("ws://127.0.0.1:{port}/"), stream).expect("handshake");
-        ws.send(Message::binary(heartbeat(30))).expect("send");
-        router.wait_for("new component 30.1 on ws:127.0.0.1:");
-        ws
-    };
+    let stuck = small_window_client(&mut router, port, 30);
     let stuck_name = link_name(&stuck);
     let mut healthy = ws_join(&mut router, port, 20);
     let peak_before = status_bytes(pid, "VmHWM");
