@@ -60,9 +60,10 @@ pub trait Driver {
     /// Closes the device after [`Progress::Lost`]; what was in flight is dropped.
     fn close(&mut self) {}
 
-    /// Begins a clean end (at shutdown once what the core handed out is written, or
-    /// when a reload's removed interface closes): shuts the sending side, so the peer
-    /// gets all that was sent and then the end. True if the loop must then
+    /// Begins a clean end (at shutdown once what the core handed out is written, when a
+    /// reload's removed interface closes, or after [`Driver::parting`]): shuts the
+    /// sending side once what is still to go is out, so the peer gets all that was sent
+    /// and then the end. True if the loop must then
     /// call [`Driver::linger`] until it says done before closing: Linux answers input
     /// that arrives after a TCP socket is closed with a reset, and discards what the
     /// peer has not acknowledged yet. Drivers without a stream need not override it.
@@ -79,9 +80,10 @@ pub trait Driver {
         false
     }
 
-    /// After [`Driver::shut_write`]: reads and drops what the peer still sends; true
-    /// once closing loses nothing here (the peer's system acknowledged everything, the
-    /// peer ended, or the connection failed).
+    /// After [`Driver::shut_write`]: sends what is still to go, reads and drops what the
+    /// peer still sends; true once closing loses nothing here (as a rule: the peer's
+    /// system acknowledged everything, the peer ended, or the connection failed; a
+    /// driver may wait for the peer's end, when the peer may still be sending).
     fn linger(&mut self) -> bool {
         true
     }

@@ -50,6 +50,9 @@ const LOG_DRAIN: Duration = Duration::from_secs(1);
 /// How often a lingering socket is asked whether its peer acknowledged everything
 /// (no event says so).
 const LINGER_POLL: Duration = Duration::from_millis(10);
+/// At most this many sockets linger at once after an error ([`Driver::parting`]);
+/// beyond, one is closed at once: a flood of bad requests cannot hold descriptors.
+const MAX_PARTING: usize = 64;
 /// How long the recorder may take to write its last records and close its file at exit.
 const RECORDER_FINISH: Duration = Duration::from_secs(2);
 
@@ -73,8 +76,9 @@ struct Slot {
     /// ([`Request::Retire`]); what it reads the core drops. It is in
     /// [`Runtime::retiring`].
     retiring: bool,
-    /// Its interface is gone (or the router stops) and its sending side is shut: it is
-    /// only read and dropped until closing loses nothing ([`Driver::linger`]); it is in
+    /// Its interface is gone (or the router stops, or its connection ended for an error)
+    /// and its sending side is being shut: it only sends what was still to go, and is
+    /// read and dropped, until closing loses nothing ([`Driver::linger`]); it is in
     /// [`Runtime::lingering`], and no longer the slot of any interface number.
     lingering: bool,
 }
@@ -284,12 +288,14 @@ impl Runtime {
     }
 
     /// Slot `key`'s driver reported its device lost: it is closed now, or, if it still
-    /// has something to tell its peer ([`Driver::parting`]), once that is out (for
-    /// [`CLOSE_FLUSH`] at most).
+    /// has something to tell its peer ([`Driver::parting`]) and fewer than
+    /// [`MAX_PARTING`] sockets linger, once that is out (for [`CLOSE_FLUSH`] at most).
     #[cold]
     #[inline(never)]
     fn lost(&mut self, key: usize) {
-        if self.slots.get(key).is_some_and(|s| s.driver.parting()) {
+        if self.lingering.len() < MAX_PARTING
+            && self.slots.get(key).is_some_and(|s| s.driver.parting())
+        {
             let until = self.now() + CLOSE_FLUSH;
             if self.begin_linger(key, until) {
                 return;

@@ -342,7 +342,7 @@ impl Driver for TcpStreamDriver {
 /// Reads and drops what `stream` has (a bounded amount); true once closing it loses
 /// nothing: everything sent was acknowledged, or the peer ended, or it failed.
 pub(super) fn linger_on(stream: &TcpStream) -> bool {
-    drain(stream) == Input::Ended || all_acknowledged(stream)
+    drain(stream) != Input::Open || all_acknowledged(stream)
 }
 
 /// True if the peer's system has acknowledged everything sent on `stream` (or that
@@ -354,26 +354,25 @@ pub(super) fn all_acknowledged(stream: &TcpStream) -> bool {
 /// What reading and dropping the input of a stream that lingers found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Input {
-    /// Nothing had arrived.
-    Quiet,
-    /// Bytes had arrived (read and dropped; more may be waiting).
-    Flowing,
-    /// The peer ended, or the connection failed.
+    /// The peer may still send.
+    Open,
+    /// The peer ended its sending side (it may still read).
     Ended,
+    /// The connection failed.
+    Failed,
 }
 
 /// Reads and drops what `stream` has (a bounded amount).
 pub(super) fn drain(mut stream: &TcpStream) -> Input {
     let mut scratch = [0u8; 16 * 1024];
-    let mut input = Input::Quiet;
     for _ in 0..64 {
         match stream.read(&mut scratch) {
             Ok(0) => return Input::Ended,
-            Ok(_) => input = Input::Flowing,
+            Ok(_) => {}
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(_) => return Input::Ended,
+            Err(_) => return Input::Failed,
         }
     }
-    input
+    Input::Open
 }

@@ -14,11 +14,11 @@
 //!   and a request that is not a WebSocket upgrade (answered 426, 405 or 400: see
 //!   [`refusal`]).
 //! - A connection closed for an error still tells the peer why: the loop lets it
-//!   linger ([`Driver::parting`]), reading and dropping what the peer still sends, until
-//!   its Close frame is acknowledged and the peer has stopped sending, or until the peer
-//!   of a refused request has ended (see [`Until`]). Closed at once, with the peer's
-//!   bytes unread, it would be reset, and the reset may discard the answer or make the
-//!   peer fail in the middle of a send, before reading it.
+//!   linger ([`Driver::parting`]) until the peer, which gets the answer or the Close
+//!   frame and then the end, ends too (see [`Until`]); what it still sends meanwhile is
+//!   read and dropped. Closed at once, with the peer's bytes unread, it would be reset,
+//!   and the reset may discard the answer or make the peer fail in the middle of a
+//!   send, before reading it.
 //! - Output is taken from the core a few frames at a time, only once what was taken
 //!   before has been written: a client that never reads is held back by the core's
 //!   per-link queue, as a TCP client is; the driver never buffers more.
@@ -219,12 +219,10 @@ enum Until {
     /// Once everything sent is acknowledged, even if the peer still sends (at shutdown,
     /// after a reload removed the block, or after the peer's own Close).
     Acknowledged,
-    /// Once everything sent is acknowledged and nothing arrived since the last look:
-    /// after a Close for an error, as the peer may still be sending the message that
-    /// caused it, blocked until its bytes are read.
-    Quiet,
     /// Once the peer ends: after an HTTP error answer, whose request may still have a
-    /// body on its way.
+    /// body on its way, and after a Close for an error, as the peer may still be sending
+    /// the message that caused it (blocked until its bytes are read). A peer that read
+    /// the answer or the Close, and then the end, ends too.
     Ended,
 }
 
@@ -233,11 +231,9 @@ impl Until {
     /// close.
     fn reached(self, socket: &TcpStream) -> bool {
         match (self, tcp::drain(socket)) {
-            (_, Input::Ended) => true,
-            (Until::Ended, _) | (Until::Quiet, Input::Flowing) => false,
-            (Until::Acknowledged, _) | (Until::Quiet, Input::Quiet) => {
-                tcp::all_acknowledged(socket)
-            }
+            (_, Input::Ended | Input::Failed) => true,
+            (Until::Ended, Input::Open) => false,
+            (Until::Acknowledged, Input::Open) => tcp::all_acknowledged(socket),
         }
     }
 }
@@ -357,7 +353,7 @@ impl WebSocketDriver {
                 start_close(&mut ws, code, reason);
                 // As far as the socket takes it now; the rest while it lingers.
                 let _ = ws.flush();
-                State::Closing(ws, Until::Quiet)
+                State::Closing(ws, Until::Ended)
             }
             _ => State::Gone,
         };
@@ -550,7 +546,8 @@ impl Driver for WebSocketDriver {
         match &mut self.state {
             State::Closing(ws, until) => {
                 // A peer blocked in a send reads the Close only once that send is done.
-                if tcp::drain(&ws.get_ref().0) == Input::Ended {
+                // One that ended its sending side may still read: the Close still goes.
+                if tcp::drain(&ws.get_ref().0) == Input::Failed {
                     return true;
                 }
                 match ws.flush() {

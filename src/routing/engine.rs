@@ -82,7 +82,8 @@ pub use messages::SystemSet;
 pub const TICK: Duration = Duration::from_secs(1);
 
 /// How long an interface may still send what was queued for it once it is to close: at
-/// shutdown (SIGINT, SIGTERM), and when a reload removes or reopens it.
+/// shutdown (SIGINT, SIGTERM), and when a reload removes or reopens it; also how long a
+/// connection ended for an error may linger to tell its peer why.
 pub const CLOSE_FLUSH: Duration = Duration::from_secs(1);
 
 /// How long a TCP client may be down before what was queued for it meanwhile is dropped

@@ -263,7 +263,20 @@ fn an_oversized_message_closes_the_connection() {
 /// connection would be reset, and the Close never sent.
 #[test]
 fn a_client_behind_on_reading_still_gets_its_close_frame() {
-    let s = Scratch::new("ws-behind");
+    behind_on_reading_then_too_big("ws-behind", false);
+}
+
+/// As above, for a client that ends its sending side right after the oversized message:
+/// it can still read, and the Close still goes out to it.
+#[test]
+fn a_client_that_ends_its_side_still_gets_its_close_frame() {
+    behind_on_reading_then_too_big("ws-behind-ended", true);
+}
+
+/// A client the router's writes to have blocked sends a message over 64 KiB (then ends
+/// its sending side if `end`), and then reads: it must get the backlog and Close 1009.
+fn behind_on_reading_then_too_big(scratch: &str, end: bool) {
+    let s = Scratch::new(scratch);
     let (mut router, udp, port) = router(&s, "", "queue { link_bytes 100000; }\n");
     let v = vehicle(&mut router, udp, 1);
     let mut stuck = small_window_client(&mut router, port, 30);
@@ -284,6 +297,12 @@ fn a_client_behind_on_reading_still_gets_its_close_frame() {
     stuck
         .send(Message::binary(vec![0u8; 64 * 1024 + 1]))
         .expect("send");
+    if end {
+        stuck
+            .get_ref()
+            .shutdown(std::net::Shutdown::Write)
+            .expect("shutdown");
+    }
     router.err.wait_for("message over 65536 bytes", 10 * SECOND);
     stuck
         .get_ref()
@@ -518,6 +537,51 @@ fn a_refused_request_with_a_body_is_answered_without_a_reset() {
         .err
         .wait_for("(answered 405 Method Not Allowed)", 5 * SECOND);
     let _client = ws_join(&mut router, port, 5);
+    router.stop();
+}
+
+/// Refused requests whose clients never end wait for them at most 64 at a time: beyond,
+/// a connection is closed at once, so a flood of bad requests cannot hold the router's
+/// descriptors. Each still gets its answer.
+#[test]
+fn at_most_64_refused_connections_wait_for_their_clients() {
+    let s = Scratch::new("ws-parting-cap");
+    let (mut router, _, port) = router(&s, "", "");
+    let pid = router.pid();
+    let descriptors = || {
+        std::fs::read_dir(format!("/proc/{pid}/fd"))
+            .expect("the router's descriptors")
+            .count()
+    };
+    let before = descriptors();
+    let mut clients: Vec<TcpStream> = (0..100)
+        .map(|_| {
+            let mut c = connect(&format!("127.0.0.1:{port}"));
+            c.set_read_timeout(Some(5 * SECOND)).expect("timeout");
+            c.write_all(b"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\nxxxx")
+                .expect("write");
+            c
+        })
+        .collect();
+    for (i, c) in clients.iter_mut().enumerate() {
+        // The answer, then the end (or a reset, for those closed at once).
+        let mut answer = Vec::new();
+        let mut buf = [0u8; 1024];
+        while let Ok(n @ 1..) = c.read(&mut buf) {
+            answer.extend_from_slice(&buf[..n]);
+        }
+        assert!(
+            answer.starts_with(b"HTTP/1.1 405 "),
+            "client {i}: {:?}",
+            String::from_utf8_lossy(&answer)
+        );
+    }
+    // The clients are still connected, none has ended: those waiting still hold theirs.
+    let held = descriptors().saturating_sub(before);
+    assert!(
+        held <= 64,
+        "{held} descriptors held for 100 refused clients"
+    );
     router.stop();
 }
 
