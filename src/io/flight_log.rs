@@ -50,7 +50,10 @@ struct Counters {
     bytes: AtomicU64,
     files: AtomicU64,
     removed: AtomicU64,
+    /// Blocks the writer could not write (the disk failed or had no room).
     dropped: AtomicU64,
+    /// Blocks the loop could not queue for the writer (it was behind).
+    behind: AtomicU64,
 }
 
 /// What the loop and the writer share.
@@ -60,6 +63,8 @@ type Shared = writer_thread::Shared<Queue, Counters>;
 pub(super) struct FlightLogWriter {
     writer: WriterThread<Queue, Counters>,
     config: FlightLog,
+    /// Blocks dropped since the writer fell behind, while it is (said once).
+    behind: Option<u64>,
 }
 
 impl FlightLogWriter {
@@ -80,6 +85,7 @@ impl FlightLogWriter {
         FlightLogWriter {
             writer,
             config: config.clone(),
+            behind: None,
         }
     }
 
@@ -110,14 +116,32 @@ impl FlightLogWriter {
             shared.wake();
         }
         drop(pending);
-        add(&shared.counters().dropped, dropped);
+        add(&shared.counters().behind, dropped);
+        match (&mut self.behind, dropped) {
+            (Some(n), 0) if any => {
+                log::warn(&format_args!(
+                    "flight log: the writer caught up; {n} blocks were dropped"
+                ));
+                self.behind = None;
+            }
+            (Some(n), _) => *n += dropped,
+            (None, 0) => {}
+            (None, _) => {
+                log::warn(
+                    &"flight log: the writer is behind (a slow disk?); blocks are dropped and counted until it catches up",
+                );
+                self.behind = Some(dropped);
+            }
+        }
     }
 
     /// The writer's counters, joined with the core's.
     pub(super) fn stats(&self, engine: &Engine) -> FlightLogStats {
         let shared = self.writer.shared();
         let c = shared.counters();
-        let (stream, streaming) = engine.flight_log_counters().unwrap_or_default();
+        let (mut stream, streaming) = engine.flight_log_counters().unwrap_or_default();
+        // The writer fell behind, whether the core or the loop found it so.
+        stream.dropped += read(&c.behind);
         FlightLogStats {
             stream,
             blocks_written: read(&c.blocks),

@@ -279,11 +279,12 @@ impl Writer {
         let counters = shared.counters();
         let count = lens.len() as u64;
         if !self.make_room(run.len() as u64) {
-            add(&counters.dropped_no_space, count);
+            // Said before these are counted: they are among those dropped since.
             self.trouble(
                 Trouble::NoSpace,
                 &"less than min_free_bytes free on the disk even without the older recordings",
             );
+            add(&counters.dropped_no_space, count);
             return;
         }
         let Some(file) = self.file.as_mut() else {
@@ -317,10 +318,16 @@ impl Writer {
             self.write(run, lens);
             return;
         }
-        add(&counters.dropped_disk, count);
         let path = self.path_text();
         self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
-        if e.kind() == io::ErrorKind::FileTooLarge {
+        add(&counters.dropped_disk, count);
+        // A full disk may get room again, and this file goes on then. Any other failure
+        // (a card that dropped out and came back, an I/O error) may stay with this
+        // handle for good: the next records start a new file.
+        if !matches!(
+            e.kind(),
+            io::ErrorKind::StorageFull | io::ErrorKind::QuotaExceeded
+        ) {
             self.close();
         }
     }
@@ -442,5 +449,49 @@ pub(super) fn start(record: &Recording) -> Option<Recorder> {
             ));
             None
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_that_fails_otherwise_than_full_is_left_for_a_new_one() {
+        let dir = std::env::temp_dir().join(format!("mavtables-rec-fail-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("dir");
+        let pattern =
+            FilePattern::parse(&format!("{}/flight.tlog", dir.display())).expect("pattern");
+        let mut writer = Writer {
+            dir: dir.clone(),
+            made: MadeList::open(&pattern, "recording", "recordings"),
+            pattern,
+            max_file_bytes: 1 << 20,
+            max_files: 10,
+            min_free_bytes: 0,
+            shared: Arc::new(Shared::default()),
+            file: None,
+            name: None,
+            size: 0,
+            trouble: None,
+            suffixes: made_files::Suffixes::default(),
+        };
+        let record = [7u8; 20];
+        writer.write(&record, &[20]);
+        // The handle fails from now on (as one on a card that dropped out would), though
+        // the directory is fine.
+        let first = dir.join(writer.name.clone().expect("a file"));
+        writer.file = Some(File::open(&first).expect("open"));
+        writer.write(&record, &[20]);
+        writer.write(&record, &[20]);
+        let c = writer.shared.counters();
+        assert_eq!(
+            (read(&c.written), read(&c.dropped_disk), read(&c.files)),
+            (2, 1, 2)
+        );
+        assert_eq!(std::fs::metadata(&first).expect("first").len(), 20);
+        writer.close();
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

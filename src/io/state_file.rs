@@ -134,9 +134,26 @@ fn write_loop(path: &Path, shared: &(Mutex<Pending>, Condvar)) {
 
 /// Writes `text` to `path` so that the file is either the old one or the new one, even
 /// if the machine loses power, through a temporary file of mavtables' own name beside
-/// it ([`temp_path`]).
+/// it ([`temp_path`]). When `path` is a symbolic link (a state kept on another disk of a
+/// read-only system, say), the file it leads to is replaced and the link stays: the
+/// state is read through the link, so it must be saved there too.
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
-    replace_file(path, &temp_path(path), text.as_bytes(), 0o600)
+    let target = link_target(path);
+    replace_file(&target, &temp_path(&target), text.as_bytes(), 0o600)
+}
+
+/// The file a save to `path` replaces: `path`, or the file its links lead to (which need
+/// not exist yet).
+fn link_target(path: &Path) -> PathBuf {
+    let mut target = path.to_path_buf();
+    // A bounded number of links, as the system follows.
+    for _ in 0..40 {
+        match fs::read_link(&target) {
+            Ok(next) => target = target.parent().map_or(next.clone(), |dir| dir.join(next)),
+            Err(_) => break,
+        }
+    }
+    target
 }
 
 /// Where the state for `path` is written before it is renamed over it: a hidden name of
@@ -234,6 +251,41 @@ mod tests {
             "victim data"
         );
         assert!(!temp.exists() && fs::symlink_metadata(&temp).is_err());
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_state_file_that_is_a_link_is_saved_where_it_leads_and_the_link_stays() {
+        let dir = std::env::temp_dir().join(format!("mavtables-state-link-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(dir.join("persist")).expect("dir");
+        fs::create_dir_all(dir.join("etc")).expect("dir");
+        let kept = dir.join("persist").join("signing.state");
+        let path = dir.join("etc").join("signing.state");
+        // A relative link, as `ln -s ../persist/signing.state` makes; its file not there yet.
+        std::os::unix::fs::symlink("../persist/signing.state", &path).expect("symlink");
+        let state = |clock| SavedState {
+            clean: true,
+            clock,
+            streams: Vec::new(),
+        };
+        for clock in [7, 8] {
+            let (file, _) = StateFile::open(path.clone()).expect("open");
+            file.finish(Some(&state(clock)));
+            assert!(fs::symlink_metadata(&path).expect("meta").is_symlink());
+            assert_eq!(
+                SavedState::parse(&fs::read_to_string(&kept).expect("read")),
+                Ok(state(clock))
+            );
+        }
+        let (file, saved) = StateFile::open(path.clone()).expect("open");
+        assert_eq!(saved, Some(state(8)));
+        file.finish(None);
+        assert!(
+            !dir.join("etc")
+                .join(".signing.state.mavtables.tmp")
+                .exists()
+        );
         let _ = fs::remove_dir_all(&dir);
     }
 }
