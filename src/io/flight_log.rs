@@ -76,6 +76,7 @@ impl FlightLogWriter {
                 config: cfg,
                 shared,
                 lists: HashMap::new(),
+                unusable: Vec::new(),
                 begun: None,
                 file: None,
                 trouble: false,
@@ -183,6 +184,8 @@ struct Writer {
     shared: Arc<Shared>,
     /// By extension.
     lists: HashMap<&'static str, List>,
+    /// Extensions whose path pattern is not valid (said once): nothing is written.
+    unusable: Vec<&'static str>,
     /// The log begun, whose file is created with its first bytes.
     begun: Option<Protocol>,
     file: Option<Open>,
@@ -290,12 +293,16 @@ impl Writer {
 
     /// The list of `ext`'s logs, read when first needed.
     fn list(&mut self, ext: &'static str) -> Option<&mut List> {
+        if self.unusable.contains(&ext) {
+            return None;
+        }
         if !self.lists.contains_key(ext) {
             let path = self.config.path_pattern(ext, |k| std::env::var(k).ok());
             let pattern = match FilePattern::parse(&path) {
                 Ok(p) => p,
                 Err(e) => {
                     log::error(&format_args!("flight log: path {path}: {}", e.message));
+                    self.unusable.push(ext);
                     return None;
                 }
             };

@@ -58,6 +58,11 @@ impl StateFile {
             thread::Builder::new()
                 .name("signing-state".into())
                 .spawn(move || write_loop(&path, &shared))
+                .map_err(|e| {
+                    log::error(&format_args!(
+                        "signing state: cannot start its writer: {e}; it is saved only at exit"
+                    ));
+                })
                 .ok()
         };
         Ok((
