@@ -169,15 +169,31 @@ fn until(what: &str, timeout: Duration, mut step: impl FnMut() -> bool) {
 
 /// Sends the vehicle's frames numbered from `base` on (and the ground station's
 /// heartbeat) until one of them reaches the ground station: nothing sent before (still
-/// in a socket) counts. Panics after 30 s.
+/// in a socket) counts. Panics after 30 s, with what both routers said and counted.
 fn heard(gs: &mut Site, edge: &mut Site, base: u32) {
     let mut n = base;
-    until("the vehicle at the ground station", 30 * SECOND, || {
+    let deadline = Instant::now() + 30 * SECOND;
+    loop {
         gs.send(&heartbeat(255));
         edge.send(&numbered(1, n));
         n += 1;
-        gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base)
-    });
+        if gs.has(|f| is(ATTITUDE, 1)(f) && common::net::number_of(f.as_bytes()) >= base) {
+            return;
+        }
+        if Instant::now() >= deadline {
+            let said = (gs.router.err.drain(), edge.router.err.drain());
+            let counted = (
+                common::net::counters(&mut gs.router).text,
+                common::net::counters(&mut edge.router).text,
+            );
+            panic!(
+                "the vehicle at the ground station: not within 30 s\n\
+                 ground station said {:#?}\ncounted {}\nedge said {:#?}\ncounted {}",
+                said.0, counted.0, said.1, counted.1
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 /// The `zenoh` block of a ground station's peer listening at `endpoint`, receiving all.
