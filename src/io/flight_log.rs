@@ -24,7 +24,7 @@ use std::time::Duration;
 use super::log;
 use super::made_files::{self, CreateError};
 use super::manifest::MadeList;
-use super::writer_thread::{self, WriterThread, add, read};
+use super::writer_thread::{self, Behind, WriterThread, add, read};
 use crate::config::FlightLog;
 use crate::flight_log::{FlightLogStats, LogWrite, Protocol};
 use crate::recording::FilePattern;
@@ -63,8 +63,8 @@ type Shared = writer_thread::Shared<Queue, Counters>;
 pub(super) struct FlightLogWriter {
     writer: WriterThread<Queue, Counters>,
     config: FlightLog,
-    /// Blocks dropped since the writer fell behind, while it is (said once).
-    behind: Option<u64>,
+    /// Whether blocks are being dropped because the writer is behind (said once).
+    behind: Behind,
 }
 
 impl FlightLogWriter {
@@ -86,7 +86,7 @@ impl FlightLogWriter {
         FlightLogWriter {
             writer,
             config: config.clone(),
-            behind: None,
+            behind: Behind::default(),
         }
     }
 
@@ -118,22 +118,7 @@ impl FlightLogWriter {
         }
         drop(pending);
         add(&shared.counters().behind, dropped);
-        match (&mut self.behind, dropped) {
-            (Some(n), 0) if any => {
-                log::warn(&format_args!(
-                    "flight log: the writer caught up; {n} blocks were dropped"
-                ));
-                self.behind = None;
-            }
-            (Some(n), _) => *n += dropped,
-            (None, 0) => {}
-            (None, _) => {
-                log::warn(
-                    &"flight log: the writer is behind (a slow disk?); blocks are dropped and counted until it catches up",
-                );
-                self.behind = Some(dropped);
-            }
-        }
+        self.behind.turn("flight log", "blocks", dropped, any);
     }
 
     /// The writer's counters, joined with the core's.

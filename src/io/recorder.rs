@@ -25,7 +25,7 @@ use std::time::Duration;
 use super::log;
 use super::made_files::{self, CreateError};
 use super::manifest::MadeList;
-use super::writer_thread::{self, WriterThread, add, read};
+use super::writer_thread::{self, Behind, WriterThread, add, read};
 use crate::capture::tlog::TIMESTAMP_LEN;
 use crate::config::Recording;
 use crate::recording::pattern::MAX_SUFFIX;
@@ -78,9 +78,7 @@ pub(super) struct Recorder {
     /// The last timestamp queued, in microseconds since the epoch.
     last_us: u64,
     /// Whether records are being dropped because the queue is full (said once).
-    behind: bool,
-    /// Records dropped for a full queue since that began.
-    behind_drops: u64,
+    behind: Behind,
 }
 
 impl Recorder {
@@ -113,8 +111,7 @@ impl Recorder {
         Recorder {
             writer,
             last_us: 0,
-            behind: false,
-            behind_drops: 0,
+            behind: Behind::default(),
         }
     }
 
@@ -146,22 +143,9 @@ impl Recorder {
                 self.writer.shared().wake();
             }
         }
-        if dropped > 0 {
-            add(&self.writer.shared().counters().dropped_queue_full, dropped);
-            self.behind_drops += dropped;
-            if !self.behind {
-                self.behind = true;
-                log::warn(
-                    &"recording: the writer is behind (a slow disk?); records are dropped and counted until it catches up",
-                );
-            }
-        } else if queued > 0 && self.behind {
-            self.behind = false;
-            log::warn(&format_args!(
-                "recording: the writer caught up; {} records were dropped",
-                std::mem::take(&mut self.behind_drops)
-            ));
-        }
+        add(&self.writer.shared().counters().dropped_queue_full, dropped);
+        self.behind
+            .turn("recording", "records", dropped, queued > 0);
     }
 
     /// The counters so far (`core_dropped`: frames the core's buffer could not keep,

@@ -348,16 +348,24 @@ impl WebSocketDriver {
         why: String,
     ) -> Progress {
         self.report(engine, now, Some(why));
+        self.close_open(Some((code, reason)), Until::Ended);
+        Progress::Lost
+    }
+
+    /// Takes an open connection to [`State::Closing`], a Close frame of `close` queued if
+    /// given; what is queued goes out as far as the socket takes it now, the rest while
+    /// it lingers. Any other state is gone.
+    fn close_open(&mut self, close: Option<(CloseCode, &'static str)>, until: Until) {
         self.state = match std::mem::replace(&mut self.state, State::Gone) {
             State::Open(mut ws) => {
-                start_close(&mut ws, code, reason);
-                // As far as the socket takes it now; the rest while it lingers.
+                if let Some((code, reason)) = close {
+                    start_close(&mut ws, code, reason);
+                }
                 let _ = ws.flush();
-                State::Closing(ws, Until::Ended)
+                State::Closing(ws, until)
             }
             _ => State::Gone,
         };
-        Progress::Lost
     }
 
     /// Reports the connection lost, and closes it: an error (logged and counted) or a
@@ -432,14 +440,11 @@ impl WebSocketDriver {
             return self.lose(engine, now, Some(format!("send failed: {e}")));
         }
         self.report(engine, now, None);
-        self.state = match (reply, std::mem::replace(&mut self.state, State::Gone)) {
-            (true, State::Open(mut ws)) => {
-                // As far as the socket takes it now; the rest while it lingers.
-                let _ = ws.flush();
-                State::Closing(ws, Until::Acknowledged)
-            }
-            _ => State::Gone,
-        };
+        if reply {
+            self.close_open(None, Until::Acknowledged);
+        } else {
+            self.state = State::Gone;
+        }
         Progress::Lost
     }
 }
@@ -531,9 +536,8 @@ impl Driver for WebSocketDriver {
                 true
             }
             other => {
-                let parting = matches!(other, State::Closing(..) | State::Shut(..));
                 self.state = other;
-                parting
+                self.parting()
             }
         }
     }

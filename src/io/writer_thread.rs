@@ -165,6 +165,38 @@ impl<Q, C> WriterThread<Q, C> {
     }
 }
 
+/// Whether the loop is dropping items because the writer is behind: said once when it
+/// begins, and when it is over with how many were dropped meanwhile.
+#[derive(Debug, Default)]
+pub(super) struct Behind {
+    /// Items dropped since it began, while it lasts.
+    dropped: Option<u64>,
+}
+
+impl Behind {
+    /// After a turn of queueing for the writer of `what` (`recording`, `flight log`):
+    /// `dropped` items (`items`: `records`, `blocks`) did not fit, and some were
+    /// `queued`.
+    pub(super) fn turn(&mut self, what: &str, items: &str, dropped: u64, queued: bool) {
+        match (&mut self.dropped, dropped) {
+            (None, 0) => {}
+            (None, _) => {
+                log::warn(&format_args!(
+                    "{what}: the writer is behind (a slow disk?); {items} are dropped and counted until it catches up"
+                ));
+                self.dropped = Some(dropped);
+            }
+            (Some(n), 0) if queued => {
+                log::warn(&format_args!(
+                    "{what}: the writer caught up; {n} {items} were dropped"
+                ));
+                self.dropped = None;
+            }
+            (Some(n), _) => *n += dropped,
+        }
+    }
+}
+
 /// Adds `n` to `counter`.
 pub(super) fn add(counter: &AtomicU64, n: u64) {
     counter.fetch_add(n, Ordering::Relaxed);
