@@ -185,15 +185,19 @@ pub(crate) fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError
 
 /// Replaces the file at `path` with `bytes` so that it is the old file or the new one at
 /// every moment, even across a power loss: `bytes` go to `temp` (a name of mavtables' own
-/// beside `path`: whatever is there is removed first, and a link there is removed, never
-/// followed), created with `mode`, synced and renamed over `path`; then the directory is
-/// synced. When a step fails, the temporary file is removed again.
-pub(crate) fn replace_file(path: &Path, temp: &Path, bytes: &[u8], mode: u32) -> io::Result<()> {
-    match std::fs::remove_file(temp) {
-        Ok(()) => {}
-        Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-        Err(e) => return Err(e),
-    }
+/// beside `path`), created with `mode`, synced and renamed over `path`; then the
+/// directory is synced. When a step fails, the temporary file is removed again. What an
+/// earlier save left at `temp` is removed first, but only if it is mavtables' (empty, or
+/// beginning with `mark`, as every file of this kind it writes does: see
+/// [`remove_leftover`]); anything else there fails the save and is left alone.
+pub(crate) fn replace_file(
+    path: &Path,
+    temp: &Path,
+    bytes: &[u8],
+    mode: u32,
+    mark: &[u8],
+) -> io::Result<()> {
+    remove_leftover(temp, mark)?;
     let written = OpenOptions::new()
         .write(true)
         .create_new(true)
@@ -214,6 +218,44 @@ pub(crate) fn replace_file(path: &Path, temp: &Path, bytes: &[u8], mode: u32) ->
         let _ = d.sync_all();
     }
     Ok(())
+}
+
+/// Removes the file an interrupted save left at `temp`: only a regular file (a link is
+/// never followed nor removed) that is empty (created, not yet written) or begins with
+/// `mark`, as what mavtables writes there does. Something else at that name is not
+/// mavtables' to remove: an error says so, and it stays.
+fn remove_leftover(temp: &Path, mark: &[u8]) -> io::Result<()> {
+    let in_the_way = || {
+        io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            format!(
+                "{} is in the way, and mavtables did not write it; remove it or move it away",
+                temp.display()
+            ),
+        )
+    };
+    match std::fs::symlink_metadata(temp) {
+        Ok(meta) if meta.is_file() => {}
+        Ok(_) => return Err(in_the_way()),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e),
+    }
+    let file = OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK | libc::O_NOCTTY)
+        .open(temp)?;
+    if !file.metadata()?.is_file() {
+        return Err(in_the_way());
+    }
+    let mut start = Vec::with_capacity(mark.len());
+    file.take(mark.len() as u64).read_to_end(&mut start)?;
+    if !start.is_empty() && start != mark {
+        return Err(in_the_way());
+    }
+    match std::fs::remove_file(temp) {
+        Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use super::{
-    Config, StateFileError, check_record_path, check_signing_state, load_in, read_keys,
-    read_source, render_errors,
+    Config, StateFileError, check_record_path, check_shared_path, check_signing_state, load_in,
+    read_keys, read_source, render_errors,
 };
 use crate::signing::SigningKey;
 
@@ -48,6 +48,9 @@ pub fn read_file(path: &str) -> Result<FromFile, String> {
         Err(StateFileError::Default(message)) => unlocated = Some(message),
     }
     if let Err(more) = check_record_path(&loaded.config, &src) {
+        errors.extend(more);
+    }
+    if let Err(more) = check_shared_path(&loaded.config, &src, |k| std::env::var(k).ok()) {
         errors.extend(more);
     }
     if !errors.is_empty() || unlocated.is_some() {

@@ -45,7 +45,7 @@ pub use model::{
 pub use parser::parse;
 pub use printer::{print_ast, print_tree};
 pub use rate::{Rate, RateUnit};
-pub use record_path::check_record_path;
+pub use record_path::{check_record_path, check_shared_path};
 pub use semantics::Loaded;
 
 use crate::files::{FileError, read_regular};

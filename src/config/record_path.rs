@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::ast::{Item, RecordSetting};
+use super::ast::{FlightLogSetting, Item, RecordSetting};
 use super::{Config, Diagnostic, Span, parse};
 use crate::io::manifest;
 use crate::recording::FilePattern;
@@ -60,6 +60,59 @@ pub fn check_record_path(config: &Config, src: &str) -> Result<(), Vec<Diagnosti
     Err(vec![d])
 }
 
+/// Refuses a `record` path that is also a path of the `flight_log` (its `path` with
+/// `.ulg` or `.bin` added), each with `LOGS_DIRECTORY` read through `env`: the two
+/// writers would keep the lists of the files they made in one file, each replacing the
+/// other's, and would rotate each other's files. One located error, at the `record`
+/// path (at the `flight_log` one when the recording's is the default).
+pub fn check_shared_path(
+    config: &Config,
+    src: &str,
+    env: impl Fn(&str) -> Option<String>,
+) -> Result<(), Vec<Diagnostic>> {
+    let (Some(record), Some(flight_log)) = (&config.record, &config.flight_log) else {
+        return Ok(());
+    };
+    let recorded = record.path_pattern(&env);
+    let Some(ext) = ["ulg", "bin"]
+        .into_iter()
+        .find(|ext| flight_log.path_pattern(ext, &env) == recorded)
+    else {
+        return Ok(());
+    };
+    let ast = parse(src).ok();
+    let at = ast
+        .as_ref()
+        .and_then(|ast| {
+            ast.items.iter().find_map(|item| match item {
+                Item::Record { settings, .. } => settings.iter().rev().find_map(|s| match s {
+                    RecordSetting::Path(span) => Some(*span),
+                    _ => None,
+                }),
+                _ => None,
+            })
+        })
+        .or_else(|| {
+            ast.as_ref()?.items.iter().find_map(|item| match item {
+                Item::FlightLog { settings, .. } => settings.iter().rev().find_map(|s| match s {
+                    FlightLogSetting::Path(span) => Some(*span),
+                    _ => None,
+                }),
+                _ => None,
+            })
+        })
+        .unwrap_or_default();
+    Err(vec![
+        Diagnostic::new(
+            at,
+            format!("the recording and the flight log's .{ext} logs would be written as {recorded}"),
+        )
+        .with_note(
+            "each keeps a list of the files it made beside them, and both would use one list; give the recordings a different name or extension (path ...tlog;)".to_string(),
+        ),
+    ])
+}
+
 /// `path` with [`TIME`] before the extension of its file name.
 fn with_time(path: &str) -> String {
     let name_at = path.rfind('/').map_or(0, |i| i + 1);
@@ -85,6 +138,41 @@ fn path_span(src: &str) -> Option<Span> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_recording_may_not_share_a_path_with_the_flight_log() {
+        let both = |record: &str, flight_log: &str| {
+            format!(
+                "record {{\n    path {record};\n}}\nflight_log {{\n    system 1;\n{flight_log}}}\n"
+            )
+        };
+        let none = |_: &str| None;
+        let clash = both(
+            "/logs/%Y-%m-%d_%H-%M-%S.bin",
+            "    path /logs/%Y-%m-%d_%H-%M-%S;\n",
+        );
+        let config = crate::config::load(&clash).expect("valid").config;
+        let errors = check_shared_path(&config, &clash, none).expect_err("shared");
+        let at = errors[0].span;
+        assert_eq!(&clash[at.start..at.end], "/logs/%Y-%m-%d_%H-%M-%S.bin");
+        assert!(
+            errors[0].message.contains(".bin logs"),
+            "{}",
+            errors[0].message
+        );
+        // The flight log's default name in the default directory, or in LOGS_DIRECTORY.
+        let default = both("/var/log/mavtables/%Y-%m-%d_%H-%M-%S.ulg", "");
+        let config = crate::config::load(&default).expect("valid").config;
+        assert!(check_shared_path(&config, &default, none).is_err());
+        let logs = |k: &str| (k == "LOGS_DIRECTORY").then(|| "/srv/logs".to_string());
+        assert!(check_shared_path(&config, &default, logs).is_ok());
+        let apart = both(
+            "/logs/%Y-%m-%d_%H-%M-%S.tlog",
+            "    path /logs/%Y-%m-%d_%H-%M-%S;\n",
+        );
+        let config = crate::config::load(&apart).expect("valid").config;
+        assert!(check_shared_path(&config, &apart, none).is_ok());
+    }
 
     #[test]
     fn the_time_goes_before_the_extension() {

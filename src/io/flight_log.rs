@@ -259,7 +259,20 @@ impl Writer {
             }
             Err(e) => {
                 // Cut back to whole blocks: a block cut short would garble the rest.
-                let _ = open.file.set_len(open.size);
+                // The file is kept otherwise: a new one in the middle of a log would
+                // lack the log's beginning (its header and definitions), which readers
+                // need.
+                if let Err(cut) = open.file.set_len(open.size) {
+                    // The torn block stays: nothing more of this log may follow it.
+                    log::warn(&format_args!(
+                        "flight log: cannot write {} ({e}), nor cut it back to its last whole block ({cut}); the rest of this log is dropped",
+                        open.name
+                    ));
+                    add(&self.shared.counters().dropped, blocks);
+                    self.close();
+                    self.begun = None;
+                    return;
+                }
                 let what = format!("cannot write {}: {e}", open.name);
                 self.dropped(blocks, &what);
             }

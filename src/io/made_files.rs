@@ -13,6 +13,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use super::manifest::MadeList;
 use super::writer_thread::add;
 use super::{log, sys};
+use crate::recording::manifest::Verdict;
 use crate::recording::pattern::MAX_SUFFIX;
 use crate::recording::rotation::{self, SpacePlan};
 use crate::recording::{FilePattern, LocalTime};
@@ -88,8 +89,9 @@ fn create_at(
 }
 
 /// Removes the files `names` in `dir` and takes them off `made`, counting each in
-/// `removed`; one that cannot be removed stays listed and is said (beginning with
-/// `what`, giving `why` it was to go). The caller saves the list.
+/// `removed`; each is looked at again first, and one that is no longer the file created
+/// is only taken off the list. One that cannot be removed stays listed and is said
+/// (beginning with `what`, giving `why` it was to go). The caller saves the list.
 pub(super) fn remove(
     dir: &Path,
     made: &mut MadeList,
@@ -100,6 +102,15 @@ pub(super) fn remove(
 ) {
     for name in names {
         let path = dir.join(name);
+        match made.verdict(name) {
+            Verdict::Ours => {}
+            Verdict::Forget => {
+                // Gone, or not the file created any more: that file is not ours to remove.
+                made.forget(name);
+                continue;
+            }
+            Verdict::Unsure => continue,
+        }
         match fs::remove_file(&path) {
             Ok(()) => add(removed, 1),
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
@@ -190,6 +201,41 @@ mod tests {
         assert_eq!(make(&mut suffixes), named(0));
         // Another writer (or a restart) starts from the bare name: the lowest free one.
         assert_eq!(make(&mut Suffixes::default()), named(4));
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_listed_file_replaced_since_is_left_alone_and_only_taken_off_the_list() {
+        let dir = std::env::temp_dir().join(format!("mavtables-made-rm-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        let pattern =
+            FilePattern::parse(&format!("{}/r_%H-%M-%S.tlog", dir.display())).expect("pattern");
+        let mut made = MadeList::open(&pattern, "recording", "recordings");
+        let mut suffixes = Suffixes::default();
+        let mut make = || {
+            let (file, name) = create_new(&dir, &pattern, &mut suffixes)
+                .ok()
+                .expect("a new file");
+            made.add(&name, &file);
+            name
+        };
+        let (kept, replaced) = (make(), make());
+        // The second is replaced by another file under its name (another writer, or by
+        // hand) after it was listed.
+        let theirs = dir.join("theirs");
+        fs::write(&theirs, "not a recording").expect("write");
+        fs::rename(&theirs, dir.join(&replaced)).expect("rename");
+        let removed = AtomicU64::new(0);
+        let names = [kept.clone(), replaced.clone()];
+        remove(&dir, &mut made, &names, "test", "recording", &removed);
+        assert!(!dir.join(&kept).exists(), "the file created is removed");
+        assert_eq!(
+            fs::read_to_string(dir.join(&replaced)).ok().as_deref(),
+            Some("not a recording"),
+            "the file put in its place is not"
+        );
+        assert_eq!(removed.load(std::sync::atomic::Ordering::Relaxed), 1);
+        assert!(made.recordings().is_empty(), "both are off the list");
         let _ = fs::remove_dir_all(&dir);
     }
 }

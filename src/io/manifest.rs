@@ -239,6 +239,19 @@ impl MadeList {
         ours
     }
 
+    /// What the file at `name` is now, by its list entry: looked at again just before it
+    /// is removed, so that a file put in its place since it was listed (by hand, or by a
+    /// second writer on the same directory) is never the one removed.
+    pub(crate) fn verdict(&self, name: &str) -> Verdict {
+        match self.list.get(name) {
+            Some(entry) => {
+                let (found, _) = look(&self.dir.join(name));
+                manifest::judge(entry, &self.pattern, found, self.us)
+            }
+            None => Verdict::Unsure,
+        }
+    }
+
     /// Takes `name` off the list (removed).
     pub(crate) fn forget(&mut self, name: &str) {
         self.list.forget(name);
@@ -252,7 +265,7 @@ impl MadeList {
         let (text, left_out) = self.list.to_text(&self.pattern);
         let path = list_path(&self.pattern);
         let temp = self.dir.join(Manifest::temp_name(&self.pattern));
-        match replace_file(&path, &temp, text.as_bytes(), 0o640) {
+        match replace_file(&path, &temp, text.as_bytes(), 0o640, Manifest::MARK) {
             Ok(()) => self.failing = false,
             Err(e) => {
                 if !self.failing {

@@ -288,7 +288,17 @@ impl Writer {
         // How far the file got, then cut back: a record cut short would garble the rest
         // of the file for its readers.
         let reached = file.metadata().map_or(0, |m| m.len()).max(self.size);
-        let _ = file.set_len(self.size);
+        let cut = file.set_len(self.size);
+        if let Err(cut) = cut {
+            // A torn record stays at the end: nothing more may follow it in this file.
+            let path = self.path_text();
+            log::warn(&format_args!(
+                "recording: cannot write {path} ({e}), nor cut it back to its last whole record ({cut}); the next records start a new file"
+            ));
+            add(&counters.dropped_disk, count);
+            self.close();
+            return;
+        }
         if e.kind() == io::ErrorKind::FileTooLarge && reached < self.max_file_bytes {
             // No file may grow beyond `reached` here (a file-size limit, FAT's 4 GiB):
             // files are rotated at that size from now on, and these records go on in a

@@ -1,31 +1,35 @@
 //! The signing state file: read once at start, then written by a thread of its own
 //! (write to a temporary file, flush it to the disk, rename it over the old one), so the
 //! file is always whole and the event loop never waits for a slow disk. Only the latest
-//! state waits to be written; an older one not yet written is replaced.
+//! state waits to be written; an older one not yet written is replaced. At exit the last
+//! state is written by the same thread, and the exit waits for it a bounded time.
 
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
-use std::thread::{self, JoinHandle};
+use std::time::Duration;
 
 use super::log;
+use super::writer_thread::{Shared, WriterThread};
 use crate::config::read_signing_state;
 use crate::files::replace_file;
-use crate::signing::state::SavedState;
+use crate::signing::state::{HEADER, SavedState};
 
-/// What the loop and the writer share: the text to write next, and whether to stop.
-#[derive(Default)]
-struct Pending {
-    text: Option<String>,
-    stop: bool,
-}
+/// How long the exit waits for the last state to be written: a disk that does not
+/// answer (a stuck network mount) cannot hold the router's exit.
+const FINISH: Duration = Duration::from_secs(5);
+
+/// How often the writer looks at the queue without being woken (it is woken for each
+/// state handed to it).
+const LOOK_EVERY: Duration = Duration::from_secs(60);
+
+/// What waits to be written: the latest state's text.
+type Queued = Option<String>;
 
 /// A signing state file and its writer thread.
 pub(super) struct StateFile {
     path: PathBuf,
-    shared: Arc<(Mutex<Pending>, Condvar)>,
-    writer: Option<JoinHandle<()>>,
+    writer: WriterThread<Queued, ()>,
 }
 
 impl StateFile {
@@ -51,77 +55,56 @@ impl StateFile {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             let _ = fs::create_dir_all(dir);
         }
-        let shared = Arc::new((Mutex::new(Pending::default()), Condvar::new()));
         let writer = {
-            let shared = shared.clone();
             let path = path.clone();
-            thread::Builder::new()
-                .name("signing-state".into())
-                .spawn(move || write_loop(&path, &shared))
-                .map_err(|e| {
-                    log::error(&format_args!(
-                        "signing state: cannot start its writer: {e}; it is saved only at exit"
-                    ));
-                })
-                .ok()
+            WriterThread::spawn("signing-state", "signing state", move |shared| {
+                write_loop(&path, &shared);
+            })
         };
-        Ok((
-            StateFile {
-                path,
-                shared,
-                writer,
-            },
-            saved,
-        ))
+        if !writer.running() {
+            log::warn(&format_args!(
+                "signing state {}: it is saved only at exit",
+                path.display()
+            ));
+        }
+        Ok((StateFile { path, writer }, saved))
     }
 
     /// Hands `state` to the writer (replacing one it has not written yet).
     pub(super) fn save(&self, state: &SavedState) {
-        let (lock, cv) = &*self.shared;
-        let mut p = lock.lock().unwrap_or_else(PoisonError::into_inner);
-        p.text = Some(state.to_text());
-        cv.notify_one();
+        self.writer.shared().queue().queued = Some(state.to_text());
+        self.writer.shared().wake();
     }
 
-    /// Stops the writer and writes `last` (the state at exit) before returning.
+    /// Writes `last` (the state at exit) and stops the writer, waiting for it at most
+    /// [`FINISH`]. Without a writer thread it is written here.
     pub(super) fn finish(mut self, last: Option<&SavedState>) {
-        {
-            let (lock, cv) = &*self.shared;
-            let mut p = lock.lock().unwrap_or_else(PoisonError::into_inner);
-            p.stop = true;
-            p.text = None;
-            cv.notify_one();
-        }
-        if let Some(w) = self.writer.take() {
-            let _ = w.join();
-        }
-        if let Some(state) = last
-            && let Err(e) = write_atomically(&self.path, &state.to_text())
-        {
-            log::warn(&format_args!(
-                "cannot save signing state {}: {e}",
-                self.path.display()
-            ));
+        let text = last.map(SavedState::to_text);
+        if self.writer.running() {
+            self.writer.shared().queue().queued = text;
+            self.writer.finish(FINISH, "state");
+        } else if let Some(text) = text {
+            write_last(&self.path, &text);
         }
     }
 }
 
-/// The writer thread: writes whatever is pending until told to stop. A failure is said
-/// once until a write succeeds again.
-fn write_loop(path: &Path, shared: &(Mutex<Pending>, Condvar)) {
-    let (lock, cv) = shared;
+/// The writer thread: writes whatever is pending until told to stop, and then what was
+/// handed to it last. A failure is said once until a write succeeds again; a failure of
+/// the last write is always said.
+fn write_loop(path: &Path, shared: &Shared<Queued, ()>) {
     let mut failing = false;
     loop {
-        let text = {
-            let mut p = lock.lock().unwrap_or_else(PoisonError::into_inner);
-            while p.text.is_none() && !p.stop {
-                p = cv.wait(p).unwrap_or_else(PoisonError::into_inner);
-            }
-            if p.stop {
-                return;
-            }
-            p.text.take()
+        let (text, stop) = {
+            let mut q = shared.wait_due(LOOK_EVERY, Option::is_some);
+            (q.queued.take(), q.stop)
         };
+        if stop {
+            if let Some(text) = text {
+                write_last(path, &text);
+            }
+            return;
+        }
         let Some(text) = text else { continue };
         match write_atomically(path, &text) {
             Ok(()) => failing = false,
@@ -137,6 +120,16 @@ fn write_loop(path: &Path, shared: &(Mutex<Pending>, Condvar)) {
     }
 }
 
+/// Writes the state at exit, saying so if it fails.
+fn write_last(path: &Path, text: &str) {
+    if let Err(e) = write_atomically(path, text) {
+        log::warn(&format_args!(
+            "cannot save signing state {}: {e}",
+            path.display()
+        ));
+    }
+}
+
 /// Writes `text` to `path` so that the file is either the old one or the new one, even
 /// if the machine loses power, through a temporary file of mavtables' own name beside
 /// it ([`temp_path`]). When `path` is a symbolic link (a state kept on another disk of a
@@ -144,7 +137,13 @@ fn write_loop(path: &Path, shared: &(Mutex<Pending>, Condvar)) {
 /// state is read through the link, so it must be saved there too.
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
     let target = link_target(path);
-    replace_file(&target, &temp_path(&target), text.as_bytes(), 0o600)
+    replace_file(
+        &target,
+        &temp_path(&target),
+        text.as_bytes(),
+        0o600,
+        HEADER.as_bytes(),
+    )
 }
 
 /// The file a save to `path` replaces: `path`, or the file its links lead to (which need
@@ -174,7 +173,7 @@ fn temp_path(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::signing::state::{HEADER, STATE_FILE_LIMIT};
+    use crate::signing::state::STATE_FILE_LIMIT;
     use std::fs::File;
 
     #[test]
@@ -225,7 +224,7 @@ mod tests {
     }
 
     #[test]
-    fn the_state_is_written_through_a_name_of_mavtables_own_and_links_are_not_followed() {
+    fn the_state_is_written_through_a_name_of_mavtables_own_and_only_its_own_leftover_is_removed() {
         let dir = std::env::temp_dir().join(format!("mavtables-state-tmp-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).expect("dir");
@@ -241,11 +240,27 @@ mod tests {
             clock: 7,
             streams: Vec::new(),
         };
-        write_atomically(&path, &state.to_text()).expect("write");
-        assert_eq!(
-            SavedState::parse(&fs::read_to_string(&path).expect("read")),
-            Ok(state)
-        );
+        let text = state.to_text();
+        // A link there is neither followed nor removed: the save fails and says why.
+        let refused = write_atomically(&path, &text).expect_err("a link is in the way");
+        assert!(refused.to_string().contains("in the way"), "{refused}");
+        assert!(fs::symlink_metadata(&temp).expect("meta").is_symlink());
+        assert!(!path.exists());
+        // Nor is a file that is not mavtables'.
+        fs::remove_file(&temp).expect("remove");
+        fs::write(&temp, "the user's notes").expect("write");
+        write_atomically(&path, &text).expect_err("a file of theirs is in the way");
+        assert_eq!(fs::read_to_string(&temp).expect("read"), "the user's notes");
+        // What an interrupted save leaves (mavtables' header, or nothing yet) is removed.
+        for leftover in [format!("{HEADER}\nhalf a sta"), String::new()] {
+            fs::write(&temp, leftover).expect("write");
+            write_atomically(&path, &text).expect("write");
+            assert_eq!(
+                SavedState::parse(&fs::read_to_string(&path).expect("read")),
+                Ok(state.clone())
+            );
+            assert!(fs::symlink_metadata(&temp).is_err());
+        }
         assert!(fs::symlink_metadata(&path).expect("meta").is_file());
         assert_eq!(
             fs::read_to_string(dir.join("notes.tmp")).expect("read"),
@@ -255,7 +270,6 @@ mod tests {
             fs::read_to_string(dir.join("victim")).expect("read"),
             "victim data"
         );
-        assert!(!temp.exists() && fs::symlink_metadata(&temp).is_err());
         let _ = fs::remove_dir_all(&dir);
     }
 

@@ -1,5 +1,5 @@
 //! The skeleton of a file writer on a thread of its own (the recorder's, the flight
-//! log's), so that the event loop never waits for a disk.
+//! log's, the signing state's), so that the event loop never waits for a disk.
 //!
 //! The loop appends to a queue under one short lock and wakes the writer when it wants
 //! the queue taken early; the writer takes the whole queue when it is due, or at the
@@ -137,6 +137,12 @@ where
 }
 
 impl<Q, C> WriterThread<Q, C> {
+    /// Whether there is a writer thread to hand work to: it started, and `finish` has
+    /// not been called.
+    pub(super) fn running(&self) -> bool {
+        self.thread.is_some()
+    }
+
     /// What the loop shares with the writer.
     pub(super) fn shared(&self) -> &Shared<Q, C> {
         &self.shared

@@ -120,6 +120,9 @@ pub struct Manifest {
 }
 
 impl Manifest {
+    /// How every list mavtables writes begins.
+    pub(crate) const MARK: &'static [u8] = HEADER_START.as_bytes();
+
     /// The list file's name for `pattern` (in the pattern's directory): a dot, the
     /// pattern's file name as written, `.mavtables`.
     pub(crate) fn file_name(pattern: &FilePattern) -> String {

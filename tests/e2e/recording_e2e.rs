@@ -875,6 +875,43 @@ fn run_to_exit(args: &[&Path]) -> (Option<i32>, String) {
 }
 
 #[test]
+fn a_recording_path_that_is_also_the_flight_logs_is_refused_at_the_path() {
+    let scratch = Scratch::new("record-shared");
+    let logs = scratch.dir.join("logs");
+    let port = free_udp_port();
+    let config = format!(
+        "udp {{ port {port}; }}\nrecord {{\n    path {logs}/%Y-%m-%d_%H-%M-%S.bin;\n}}\nflight_log {{\n    system 1;\n    path {logs}/%Y-%m-%d_%H-%M-%S;\n}}\ndefault_action accept;\n",
+        logs = logs.display()
+    );
+    let conf = scratch.dir.join("shared.conf");
+    fs::write(&conf, &config).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{err}");
+    let first = err.lines().find(|l| !l.starts_with("warning: "));
+    assert_eq!(
+        first,
+        Some(
+            format!(
+                "{}:3:10: the recording and the flight log's .bin logs would be written as {}/%Y-%m-%d_%H-%M-%S.bin",
+                conf.display(),
+                logs.display()
+            )
+            .as_str()
+        ),
+        "{err}"
+    );
+    assert!(err.contains("one list"), "{err}");
+    // Starting is refused the same way; nothing is created.
+    let (code, start_err) = run_to_exit(&[Path::new("--config"), &conf]);
+    assert_eq!(code, Some(1), "{start_err}");
+    assert!(!logs.exists());
+    // Another extension for the recordings is fine.
+    fs::write(&conf, config.replace(".bin;", ".tlog;")).expect("config");
+    let (code, err) = run_to_exit(&[Path::new("--check"), Path::new("--config"), &conf]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
 fn a_fixed_name_that_mavtables_did_not_write_is_refused_and_left_alone() {
     let scratch = Scratch::new("record-fixed");
     let dir = scratch.dir.join("etc");
