@@ -14,9 +14,13 @@
 //! raw_syscalls:sys_enter,… -p PID` over a separate 3 s window per router and rate,
 //! divided by the frames sent in it (the router's idle wake-ups in the window count).
 //! Under each table, every mavtables build against mavlink-router paired by round: the
-//! median ratio of CPU per frame and of p50, with a 95% interval of that median (at
-//! least 6 rounds give one; 9 or more give a useful one at 1k frames/s); and with
+//! median ratio of CPU per frame, of p50 and of p99, with a 95% interval of that median
+//! (at least 6 rounds give one; 9 or more give a useful one at 1k frames/s); and with
 //! `MAVTABLES_BEFORE`, this build against each build compared, paired the same way.
+//! `MAVTABLES_BENCH_RATE=10000` runs one rate only; `MAVTABLES_BENCH_TRACE=1` prints
+//! each trial (its p50 and p99, how many frames took over 150 µs, CPU per frame and the
+//! router's moves to another CPU) on standard error, to tell a router's tail from the
+//! machine's stalls.
 
 #![forbid(unsafe_code)]
 
@@ -130,17 +134,37 @@ fn main() {
             }
         }
     }
+    let trace = std::env::var_os("MAVTABLES_BENCH_TRACE").is_some_and(|v| v != "0");
     println!(
         "versus mavlink-router: {rounds} rounds per rate and router, alternating; {} CPUs",
         std::thread::available_parallelism().map_or(0, |n| n.get())
     );
+    let only: Option<f64> = std::env::var("MAVTABLES_BENCH_RATE")
+        .ok()
+        .and_then(|r| r.parse().ok());
     for (r, &(rate, duration)) in RATES.iter().enumerate() {
+        if only.is_some_and(|o| o != rate) {
+            continue;
+        }
         for round in 0..rounds {
             let n = contestants.len();
             for k in 0..n {
                 let i = if round % 2 == 0 { k } else { n - 1 - k };
                 let c = &mut contestants[i];
+                let moved = c.pid().and_then(migrations);
                 let t = light::trial(&c.sender, c.to(), &c.sink, rate, duration, c.pid());
+                if trace {
+                    let moved = c.pid().and_then(migrations).zip(moved).map(|(b, a)| b - a);
+                    let slow = t.latencies.iter().filter(|&&ns| ns > 150_000).count();
+                    eprintln!(
+                        "trial {rate} {round} {}: p50 {:.1} p99 {:.1} µs, {slow} over 150 µs, cpu/frame {:.2} µs, migrations {}",
+                        c.name,
+                        t.latency_us(0.5),
+                        t.latency_us(0.99),
+                        t.cpu_per_frame_us().unwrap_or(f64::NAN),
+                        moved.map_or("–".to_string(), |m| m.to_string())
+                    );
+                }
                 c.trials[r].push(t);
             }
         }
@@ -157,6 +181,9 @@ fn main() {
         }
     }
     for (r, &(rate, _)) in RATES.iter().enumerate() {
+        if contestants.iter().all(|c| c.trials[r].is_empty()) {
+            continue;
+        }
         println!(
             "\n{} frames/s:\n\n| router | CPU/frame (median [min–max]) | syscalls/frame (epoll_wait/frame, timerfd_settime/s) | context switches/frame (migrations/s) | latency p50 / p99 (medians) | received |",
             rate as u64
@@ -201,6 +228,14 @@ fn main() {
     }
 }
 
+/// How many times process `pid` has moved to another CPU (`se.nr_migrations` in
+/// `/proc/PID/sched`), if the kernel says.
+fn migrations(pid: u32) -> Option<u64> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/sched")).ok()?;
+    let line = text.lines().find(|l| l.starts_with("se.nr_migrations"))?;
+    line.split(':').nth(1)?.trim().parse().ok()
+}
+
 /// Each mavtables build against mavlink-router, round by round (the two ran back to
 /// back in every round, so the machine's drift over the run cancels): the median of
 /// the per-round ratios of CPU per frame and of p50 latency, with the 95% interval of
@@ -218,12 +253,13 @@ fn paired_verdict(contestants: &[Contestant], r: usize) {
         .iter()
         .filter(|c| c.name.starts_with("mavtables"))
     {
-        let (cpu, p50) = paired_ratios(c, theirs, r);
+        let [cpu, p50, p99] = paired_ratios(c, theirs, r);
         println!(
-            "- {}: CPU/frame {}; p50 {}",
+            "- {}: CPU/frame {}; p50 {}; p99 {}",
             c.name,
             show_ratio(cpu, goal),
-            show_ratio(p50, goal)
+            show_ratio(p50, goal),
+            show_ratio(p99, goal)
         );
     }
     let Some(ours) = contestants.iter().find(|c| c.name == "mavtables") else {
@@ -238,28 +274,32 @@ fn paired_verdict(contestants: &[Contestant], r: usize) {
     }
     println!("\nmavtables ÷ each build compared, paired by round (median [95% interval]):\n");
     for before in befores {
-        let (cpu, p50) = paired_ratios(ours, before, r);
+        let [cpu, p50, p99] = paired_ratios(ours, before, r);
         let change = ["lower", "higher"];
         println!(
-            "- ÷ {}: CPU/frame {}; p50 {}",
+            "- ÷ {}: CPU/frame {}; p50 {}; p99 {}",
             before.name,
             show_ratio(cpu, change),
-            show_ratio(p50, change)
+            show_ratio(p50, change),
+            show_ratio(p99, change)
         );
     }
 }
 
-/// Per round, `a`'s CPU per frame and p50 latency divided by `b`'s at rate `r`.
-fn paired_ratios(a: &Contestant, b: &Contestant, r: usize) -> (Vec<f64>, Vec<f64>) {
+/// Per round, `a`'s CPU per frame, p50 and p99 latency divided by `b`'s at rate `r`.
+fn paired_ratios(a: &Contestant, b: &Contestant, r: usize) -> [Vec<f64>; 3] {
     let pairs = a.trials[r].iter().zip(&b.trials[r]);
     let cpu = pairs
         .clone()
         .filter_map(|(a, b)| Some(a.cpu_per_frame_us()? / b.cpu_per_frame_us()?))
         .collect();
-    let p50 = pairs
-        .map(|(a, b)| a.latency_us(0.5) / b.latency_us(0.5))
-        .collect();
-    (cpu, p50)
+    let latency = |q| {
+        pairs
+            .clone()
+            .map(|(a, b)| a.latency_us(q) / b.latency_us(q))
+            .collect()
+    };
+    [cpu, latency(0.5), latency(0.99)]
 }
 
 /// The median of `ratios` with its 95% interval, and what it shows: `says[0]` when the
