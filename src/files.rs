@@ -16,7 +16,7 @@
 use std::fmt;
 use std::fs::{File, FileType, Metadata, OpenOptions};
 use std::io::{self, Read, Write};
-use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+use std::os::unix::fs::{FileTypeExt, MetadataExt, OpenOptionsExt};
 use std::path::Path;
 
 /// Why a file could not be read. Its text never shows what the file holds.
@@ -186,10 +186,10 @@ pub(crate) fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, FileError
 /// Replaces the file at `path` with `bytes` so that it is the old file or the new one at
 /// every moment, even across a power loss: `bytes` go to `temp` (a name of mavtables' own
 /// beside `path`), created with `mode`, synced and renamed over `path`; then the
-/// directory is synced. When a step fails, the temporary file is removed again. What an
-/// earlier save left at `temp` is removed first, but only if it is mavtables' (empty, or
-/// beginning with `mark`, as every file of this kind it writes does: see
-/// [`remove_leftover`]); anything else there fails the save and is left alone.
+/// directory is synced. When a later step fails, the temporary file it created is
+/// removed again. What an earlier save left at `temp` is removed first, but only if it is
+/// mavtables' (see [`remove_leftover`]; `mark` is how every file of this kind mavtables
+/// writes begins); anything else there fails the save and is left alone.
 pub(crate) fn replace_file(
     path: &Path,
     temp: &Path,
@@ -198,18 +198,18 @@ pub(crate) fn replace_file(
     mark: &[u8],
 ) -> io::Result<()> {
     remove_leftover(temp, mark)?;
-    let written = OpenOptions::new()
+    // Never opens what is there: if something came meanwhile, it is not ours to remove.
+    let mut file = OpenOptions::new()
         .write(true)
         .create_new(true)
         .mode(mode)
-        .open(temp)
-        .and_then(|mut file| {
-            file.write_all(bytes)?;
-            file.sync_all()
-        })
+        .open(temp)?;
+    let written = file
+        .write_all(bytes)
+        .and_then(|()| file.sync_all())
         .and_then(|()| std::fs::rename(temp, path));
     if let Err(e) = written {
-        let _ = std::fs::remove_file(temp);
+        let _ = remove_if_same(temp, &file);
         return Err(e);
     }
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
@@ -221,8 +221,9 @@ pub(crate) fn replace_file(
 }
 
 /// Removes the file an interrupted save left at `temp`: only a regular file (a link is
-/// never followed nor removed) that is empty (created, not yet written) or begins with
-/// `mark`, as what mavtables writes there does. Something else at that name is not
+/// never followed nor removed) of the user mavtables runs as, whose first bytes are
+/// those of `mark` as far as they go, or zeros (what a power loss leaves of a file whose
+/// blocks were not written yet), or nothing. Something else at that name is not
 /// mavtables' to remove: an error says so, and it stays.
 fn remove_leftover(temp: &Path, mark: &[u8]) -> io::Result<()> {
     let in_the_way = || {
@@ -244,15 +245,28 @@ fn remove_leftover(temp: &Path, mark: &[u8]) -> io::Result<()> {
         .read(true)
         .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK | libc::O_NOCTTY)
         .open(temp)?;
-    if !file.metadata()?.is_file() {
+    let meta = file.metadata()?;
+    if !meta.is_file() || meta.uid() != crate::io::effective_uid() {
         return Err(in_the_way());
     }
     let mut start = Vec::with_capacity(mark.len());
-    file.take(mark.len() as u64).read_to_end(&mut start)?;
-    if !start.is_empty() && start != mark {
+    (&file).take(mark.len() as u64).read_to_end(&mut start)?;
+    if !mark.starts_with(&start) && start.iter().any(|&b| b != 0) {
         return Err(in_the_way());
     }
-    match std::fs::remove_file(temp) {
+    remove_if_same(temp, &file)
+}
+
+/// Removes `path` if it is still the file open as `file` (nothing, if it is gone).
+fn remove_if_same(path: &Path, file: &File) -> io::Result<()> {
+    let ours = file.metadata()?;
+    match std::fs::symlink_metadata(path) {
+        Ok(there) if there.dev() == ours.dev() && there.ino() == ours.ino() => {}
+        Ok(_) => return Ok(()),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e),
+    }
+    match std::fs::remove_file(path) {
         Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
         _ => Ok(()),
     }

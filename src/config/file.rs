@@ -23,7 +23,8 @@ pub struct FromFile {
 
 /// Reads, checks and loads the configuration at `path` (a regular file within
 /// [`CONFIG_FILE_LIMIT`](super::CONFIG_FILE_LIMIT)), reads its keys and checks the files
-/// it names (the signing state, a fixed recording name), exactly as at start: what
+/// it names (the signing state, a fixed recording name, a recording path the flight log
+/// shares), exactly as at start: what
 /// `--check`, the start and a reload all go through. `Err` holds the text for the
 /// operator, ready to print: every error located at `path:line:column` with the
 /// offending line, and `error: ...` lines for what has no place in the file.

@@ -4,7 +4,8 @@
 //! [`parse`] checks syntax only and gives the `ast::Ast` (what `--ast` prints);
 //! [`load`] also checks meaning and gives a [`Config`]; [`read_keys`] then reads the
 //! signing keys it names, [`check_signing_state`] checks its signing state file, and
-//! [`check_record_path`] looks at the file a `record` path without `%` fields names.
+//! [`check_record_path`] looks at the file a `record` path without `%` fields names, and
+//! [`check_shared_path`] refuses a `record` path the flight log also writes under.
 //! [`read_source`] reads a configuration file, within [`CONFIG_FILE_LIMIT`].
 
 pub(crate) mod ast;

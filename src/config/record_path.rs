@@ -1,12 +1,14 @@
-//! Checking the `record` block's path against the disk when the router starts (and for
-//! `--check`), like [`read_keys`](super::read_keys): a path without `%` fields always
-//! names the same file, and when a file mavtables did not record is already there, the
-//! path most likely names something else (the recorder would leave it alone and write
-//! beside it under a suffixed name, but saying so now is better).
+//! Checking the `record` block's path against the disk and the environment when the
+//! router starts (and for `--check` and a reload), like [`read_keys`](super::read_keys):
+//! a path without `%` fields always names the same file, and when a file mavtables did
+//! not record is already there, the path most likely names something else (the recorder
+//! would leave it alone and write beside it under a suffixed name, but saying so now is
+//! better). And a path the flight log also writes under is refused: the two would share
+//! one list of the files they made.
 
 use std::path::Path;
 
-use super::ast::{FlightLogSetting, Item, RecordSetting};
+use super::ast::{Item, RecordSetting};
 use super::{Config, Diagnostic, Span, parse};
 use crate::io::manifest;
 use crate::recording::FilePattern;
@@ -64,7 +66,7 @@ pub fn check_record_path(config: &Config, src: &str) -> Result<(), Vec<Diagnosti
 /// `.ulg` or `.bin` added), each with `LOGS_DIRECTORY` read through `env`: the two
 /// writers would keep the lists of the files they made in one file, each replacing the
 /// other's, and would rotate each other's files. One located error, at the `record`
-/// path (at the `flight_log` one when the recording's is the default).
+/// path (the default one ends in `.tlog`, which no flight log's does).
 pub fn check_shared_path(
     config: &Config,
     src: &str,
@@ -74,34 +76,19 @@ pub fn check_shared_path(
         return Ok(());
     };
     let recorded = record.path_pattern(&env);
+    // As the system reads them: `/logs//x` and `/logs/./x` are `/logs/x`.
+    let same = |other: &str| {
+        Path::new(other)
+            .components()
+            .eq(Path::new(&recorded).components())
+    };
     let Some(ext) = ["ulg", "bin"]
         .into_iter()
-        .find(|ext| flight_log.path_pattern(ext, &env) == recorded)
+        .find(|ext| same(&flight_log.path_pattern(ext, &env)))
     else {
         return Ok(());
     };
-    let ast = parse(src).ok();
-    let at = ast
-        .as_ref()
-        .and_then(|ast| {
-            ast.items.iter().find_map(|item| match item {
-                Item::Record { settings, .. } => settings.iter().rev().find_map(|s| match s {
-                    RecordSetting::Path(span) => Some(*span),
-                    _ => None,
-                }),
-                _ => None,
-            })
-        })
-        .or_else(|| {
-            ast.as_ref()?.items.iter().find_map(|item| match item {
-                Item::FlightLog { settings, .. } => settings.iter().rev().find_map(|s| match s {
-                    FlightLogSetting::Path(span) => Some(*span),
-                    _ => None,
-                }),
-                _ => None,
-            })
-        })
-        .unwrap_or_default();
+    let at = path_span(src).unwrap_or_default();
     Err(vec![
         Diagnostic::new(
             at,
@@ -166,6 +153,13 @@ mod tests {
         assert!(check_shared_path(&config, &default, none).is_err());
         let logs = |k: &str| (k == "LOGS_DIRECTORY").then(|| "/srv/logs".to_string());
         assert!(check_shared_path(&config, &default, logs).is_ok());
+        // Written differently, the same path to the system.
+        let spelled = both(
+            "/logs//%Y-%m-%d_%H-%M-%S.bin",
+            "    path /logs/./%Y-%m-%d_%H-%M-%S;\n",
+        );
+        let config = crate::config::load(&spelled).expect("valid").config;
+        assert!(check_shared_path(&config, &spelled, none).is_err());
         let apart = both(
             "/logs/%Y-%m-%d_%H-%M-%S.tlog",
             "    path /logs/%Y-%m-%d_%H-%M-%S;\n",

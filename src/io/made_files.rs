@@ -109,7 +109,13 @@ pub(super) fn remove(
                 made.forget(name);
                 continue;
             }
-            Verdict::Unsure => continue,
+            Verdict::Unsure => {
+                log::warn(&format_args!(
+                    "{what}: cannot tell whether {} is still the file created, so it stays ({why})",
+                    path.display()
+                ));
+                continue;
+            }
         }
         match fs::remove_file(&path) {
             Ok(()) => add(removed, 1),

@@ -386,4 +386,27 @@ mod tests {
             "1 2 3 notes.tlog\n"
         );
     }
+
+    #[test]
+    fn only_what_an_interrupted_save_of_a_list_left_is_removed_before_the_next() {
+        let dir = Dir::new("leftover");
+        let p = dir.pattern();
+        let path = list_path(&p);
+        let temp = Path::new(p.dir()).join(Manifest::temp_name(&p));
+        let mut made = MadeList::open(&p, "recording", "recordings");
+        // A file of the user's at the temporary name: left, and the list not saved.
+        fs::write(&temp, "# my notes\n").expect("write");
+        made.save();
+        assert!(!path.exists());
+        assert_eq!(fs::read_to_string(&temp).expect("read"), "# my notes\n");
+        // What a save cut short leaves: a beginning of the list, or zeros.
+        let leftovers: [&[u8]; 3] = [b"# mavtables: the rec", &[0; 300], b""];
+        for leftover in leftovers {
+            let _ = fs::remove_file(&path);
+            fs::write(&temp, leftover).expect("write");
+            made.save();
+            assert!(matches!(read(&p), Stored::List(_)), "{leftover:?}");
+            assert!(fs::symlink_metadata(&temp).is_err(), "{leftover:?}");
+        }
+    }
 }

@@ -45,4 +45,6 @@ mod writer_thread;
 #[cfg(feature = "zenoh")]
 mod zenoh;
 
+pub(crate) use sys::effective_uid;
+
 pub use runtime::run;

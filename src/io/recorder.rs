@@ -292,9 +292,12 @@ impl Writer {
         if let Err(cut) = cut {
             // A torn record stays at the end: nothing more may follow it in this file.
             let path = self.path_text();
-            log::warn(&format_args!(
-                "recording: cannot write {path} ({e}), nor cut it back to its last whole record ({cut}); the next records start a new file"
-            ));
+            self.trouble(
+                Trouble::Disk,
+                &format_args!(
+                    "cannot write {path} ({e}), nor cut it back to its last whole record ({cut}), so the next records start a new file"
+                ),
+            );
             add(&counters.dropped_disk, count);
             self.close();
             return;

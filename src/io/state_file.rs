@@ -7,13 +7,14 @@
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, PoisonError};
 use std::time::Duration;
 
 use super::log;
 use super::writer_thread::{Shared, WriterThread};
 use crate::config::read_signing_state;
 use crate::files::replace_file;
-use crate::signing::state::{HEADER, SavedState};
+use crate::signing::state::SavedState;
 
 /// How long the exit waits for the last state to be written: a disk that does not
 /// answer (a stuck network mount) cannot hold the router's exit.
@@ -22,6 +23,15 @@ const FINISH: Duration = Duration::from_secs(5);
 /// How often the writer looks at the queue without being woken (it is woken for each
 /// state handed to it).
 const LOOK_EVERY: Duration = Duration::from_secs(60);
+
+/// How every signing state file mavtables writes begins, whatever its version: what an
+/// interrupted save left may be removed only if it begins so (see [`replace_file`]).
+const MARK: &[u8] = b"mavtables signing state ";
+
+/// Held while a state is written: a writer a reload left behind on a stuck disk, coming
+/// unstuck, cannot write beside the writer that followed it (on the same file, the same
+/// temporary name), and the newer writer's saves, waiting for it, land last.
+static SAVING: Mutex<()> = Mutex::new(());
 
 /// What waits to be written: the latest state's text.
 type Queued = Option<String>;
@@ -76,12 +86,18 @@ impl StateFile {
         self.writer.shared().wake();
     }
 
-    /// Writes `last` (the state at exit) and stops the writer, waiting for it at most
-    /// [`FINISH`]. Without a writer thread it is written here.
+    /// Writes `last` (the state at exit, or before a reload opens another file) and
+    /// stops the writer, waiting for it at most [`FINISH`]. Without a writer thread it is
+    /// written here.
     pub(super) fn finish(mut self, last: Option<&SavedState>) {
         let text = last.map(SavedState::to_text);
         if self.writer.running() {
-            self.writer.shared().queue().queued = text;
+            {
+                // Both at once: the writer takes the last state as the last.
+                let mut q = self.writer.shared().queue();
+                q.queued = text;
+                q.stop = true;
+            }
             self.writer.finish(FINISH, "state");
         } else if let Some(text) = text {
             write_last(&self.path, &text);
@@ -136,14 +152,9 @@ fn write_last(path: &Path, text: &str) {
 /// read-only system, say), the file it leads to is replaced and the link stays: the
 /// state is read through the link, so it must be saved there too.
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
+    let _saving = SAVING.lock().unwrap_or_else(PoisonError::into_inner);
     let target = link_target(path);
-    replace_file(
-        &target,
-        &temp_path(&target),
-        text.as_bytes(),
-        0o600,
-        HEADER.as_bytes(),
-    )
+    replace_file(&target, &temp_path(&target), text.as_bytes(), 0o600, MARK)
 }
 
 /// The file a save to `path` replaces: `path`, or the file its links lead to (which need
@@ -173,8 +184,37 @@ fn temp_path(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::signing::state::STATE_FILE_LIMIT;
+    use crate::signing::state::{HEADER, STATE_FILE_LIMIT};
     use std::fs::File;
+
+    #[test]
+    fn the_mark_begins_every_version_of_the_header() {
+        assert!(HEADER.as_bytes().starts_with(MARK));
+    }
+
+    #[test]
+    fn the_last_state_handed_over_is_the_one_saved() {
+        let dir = std::env::temp_dir().join(format!("mavtables-state-last-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        let path = dir.join("signing.state");
+        let state = |clock| SavedState {
+            clean: clock % 2 == 0,
+            clock,
+            streams: Vec::new(),
+        };
+        for round in 0..20 {
+            let (file, _) = StateFile::open(path.clone()).expect("open");
+            for clock in 0..round {
+                file.save(&state(clock));
+            }
+            file.finish(Some(&state(1000 + round)));
+            assert_eq!(
+                SavedState::parse(&fs::read_to_string(&path).expect("read")),
+                Ok(state(1000 + round))
+            );
+        }
+        let _ = fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn saved_state_is_read_back_and_damage_is_not_fatal() {

@@ -529,7 +529,7 @@ pub(super) fn unacknowledged_bytes(fd: &impl AsRawFd) -> io::Result<usize> {
 
 /// The user the process acts as (`geteuid`): the owner of the files it creates, and
 /// the only owner of recordings and of their list that the recorder believes.
-pub(super) fn effective_uid() -> u32 {
+pub(crate) fn effective_uid() -> u32 {
     // SAFETY: geteuid(2) takes no arguments, touches no memory and always succeeds.
     unsafe { libc::geteuid() }
 }

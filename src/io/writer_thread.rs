@@ -150,7 +150,7 @@ impl<Q, C> WriterThread<Q, C> {
 
     /// Lets the writer write what is queued and close its file, waiting at most
     /// `timeout` for it (a stuck disk cannot hold the exit); if it does not finish, says
-    /// that the last `items` (`records`, `blocks`) may be lost.
+    /// that the last `items` (`records`, `blocks`, `state`) may be lost.
     pub(super) fn finish(&mut self, timeout: Duration, items: &str) {
         {
             let mut q = self.shared.queue();
