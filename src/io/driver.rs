@@ -115,14 +115,15 @@ pub trait Driver {
     }
 
     /// When the driver wants [`Driver::expire`] called (a WebSocket handshake's time
-    /// limit), if ever. Asked when the driver joins the loop; the loop looks once a
-    /// second, so the call comes up to a second late.
+    /// limit, a listener's next try after the system refused it a connection), if ever.
+    /// Asked when the driver joins the loop, and then each second while it has one;
+    /// the loop looks once a second, so the call comes up to a second late.
     fn deadline(&self) -> Option<Timestamp> {
         None
     }
 
     /// Its [`Driver::deadline`] has passed: [`Progress::Lost`] if it gave up (reported
-    /// to the core).
+    /// to the core), [`Progress::More`] if it wants [`Driver::receive`] called again.
     fn expire(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {
         Progress::Done
     }

@@ -713,13 +713,19 @@ impl Runtime {
                 return false;
             };
             match slot.driver.deadline() {
-                Some(due) if now >= due => {
-                    if slot.driver.expire(&mut self.engine, now) == Progress::Lost {
+                Some(due) if now >= due => match slot.driver.expire(&mut self.engine, now) {
+                    Progress::Lost => {
                         self.lost(key);
-                        return false;
+                        false
                     }
-                    true
-                }
+                    // It wants to be read again (a listener that was refused a
+                    // connection tries once more).
+                    Progress::More => {
+                        self.mark_readable(key);
+                        true
+                    }
+                    _ => true,
+                },
                 Some(_) => true,
                 None => false,
             }

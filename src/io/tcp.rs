@@ -24,8 +24,29 @@ use crate::routing::{Engine, InterfaceId, Timestamp};
 
 /// Connections taken per wake-up before the loop gets a turn to route.
 const ACCEPTS_PER_TURN: usize = 64;
+/// How long a listener waits before it accepts again after the system refused it a
+/// connection for want of descriptors or memory.
+const ACCEPT_RETRY: Duration = Duration::from_secs(1);
 /// Idle time before the first keepalive probe, and between probes.
 const KEEPALIVE: Duration = Duration::from_secs(10);
+
+/// Whether `accept` failed for the connection it was taking, not for the listener:
+/// Linux passes such errors of the network on to the caller, who is to try again.
+fn peer_gone(e: &io::Error) -> bool {
+    matches!(
+        e.raw_os_error(),
+        Some(
+            libc::ENETDOWN
+                | libc::EPROTO
+                | libc::ENOPROTOOPT
+                | libc::EHOSTDOWN
+                | libc::ENONET
+                | libc::EHOSTUNREACH
+                | libc::EOPNOTSUPP
+                | libc::ENETUNREACH
+        )
+    )
+}
 
 /// Sets the options every connection has.
 fn tune(stream: &TcpStream) -> io::Result<()> {
@@ -54,6 +75,10 @@ pub struct TcpListenerDriver {
     listener: TcpListener,
     accepted: Vec<Box<dyn Driver>>,
     make: Accepted,
+    /// Out of descriptors or memory: when to accept again. The listener is watched
+    /// edge-triggered, so the connections already waiting would wake nobody (and once
+    /// its backlog is full, no new one comes to): the loop's deadline call does.
+    retry_at: Option<Timestamp>,
 }
 
 impl TcpListenerDriver {
@@ -99,6 +124,7 @@ impl TcpListenerDriver {
             listener: socket.into(),
             accepted: Vec::new(),
             make,
+            retry_at: None,
         })
     }
 }
@@ -116,6 +142,7 @@ impl Driver for TcpListenerDriver {
         for _ in 0..ACCEPTS_PER_TURN {
             match self.listener.accept() {
                 Ok((stream, peer)) => {
+                    self.retry_at = None;
                     // A peer mapped into IPv6 is named, and judged, by its IPv4 address.
                     let peer = match peer {
                         SocketAddr::V6(a) => a
@@ -132,13 +159,21 @@ impl Driver for TcpListenerDriver {
                         self.accepted.push((self.make)(id, stream, now));
                     }
                 }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Progress::Done,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    self.retry_at = None;
+                    return Progress::Done;
+                }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                // The peer gave up before we took it.
-                Err(e) if e.kind() == io::ErrorKind::ConnectionAborted => {}
+                // The peer gave up before we took it, or its connection failed on the
+                // way (errors of the network Linux passes on through `accept`).
+                Err(e) if e.kind() == io::ErrorKind::ConnectionAborted || peer_gone(&e) => {}
                 Err(e) => {
-                    // Out of descriptors or memory: say so, and try again next turn.
-                    engine.on_receive_failed(self.interface, &e);
+                    // Out of descriptors or memory: said once until it works again,
+                    // and tried again after a while (see `retry_at`).
+                    if self.retry_at.is_none() {
+                        engine.on_receive_failed(self.interface, &e);
+                    }
+                    self.retry_at = Some(now + ACCEPT_RETRY);
                     return Progress::Done;
                 }
             }
@@ -148,6 +183,17 @@ impl Driver for TcpListenerDriver {
 
     fn take_accepted(&mut self) -> Option<Box<dyn Driver>> {
         self.accepted.pop()
+    }
+
+    fn deadline(&self) -> Option<Timestamp> {
+        // Always one, so that the loop keeps looking (once a second); far off when
+        // accepting works.
+        Some(self.retry_at.unwrap_or(Timestamp::from_nanos(u64::MAX)))
+    }
+
+    fn expire(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {
+        // Accepts again from the next turn; a new refusal sets the next try.
+        Progress::More
     }
 
     fn flush(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {

@@ -637,3 +637,77 @@ fn a_peer_that_keeps_sending_gets_everything_at_shutdown() {
         "frames the ground station received of those sent"
     );
 }
+
+/// Lowers the open-file limit of process `pid` to `n` (util-linux's `prlimit`).
+fn limit_descriptors(pid: u32, n: usize) {
+    let status = std::process::Command::new("prlimit")
+        .arg("--pid")
+        .arg(pid.to_string())
+        .arg(format!("--nofile={n}:{n}"))
+        .status()
+        .unwrap_or_else(|e| panic!("prlimit (util-linux; apt install util-linux): {e}"));
+    assert!(
+        status.success(),
+        "prlimit --pid {pid} --nofile={n}:{n}: {status}"
+    );
+}
+
+#[test]
+fn a_tcp_server_out_of_descriptors_accepts_again_once_it_has_some() {
+    let s = Scratch::new("tcp-emfile");
+    let udp_port = free_udp_port();
+    let (mut router, to) = tcp_server(
+        &s,
+        &format!("udp {{ port {udp_port}; address 127.0.0.1; }}\n"),
+    );
+    common::mavproxy::wait_tcp_listening(
+        to.rsplit(':')
+            .next()
+            .and_then(|p| p.parse().ok())
+            .expect("port"),
+        10 * SECOND,
+    );
+    let ground = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    ground
+        .send_to(&heartbeat(9), ("127.0.0.1", udp_port))
+        .expect("send");
+    router.wait_for("new component 9.1 on 127.0.0.1:");
+    let pid = router.pid();
+    limit_descriptors(pid, 40);
+    // Far more connections than the router has descriptors for, and than its listener's
+    // backlog holds: the ones it cannot take wait in the backlog until it is full.
+    let addr: SocketAddr = to.parse().expect("address");
+    let waiting: Vec<socket2::Socket> = (0..300)
+        .filter_map(|_| {
+            let socket =
+                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).ok()?;
+            socket.set_nonblocking(true).ok()?;
+            let _ = socket.connect(&addr.into());
+            Some(socket)
+        })
+        .collect();
+    router.err.wait_for("receive failed", 10 * SECOND);
+    // They all go; the router gets its descriptors back as it finds them closed.
+    drop(waiting);
+    // A new client is taken and heard (its SYN found no room while the backlog was full
+    // of closed connections nobody accepted, before the listener tried again).
+    let mut client = eventually("a new connection accepted", 30 * SECOND, || {
+        let mut c = TcpStream::connect_timeout(&addr, 2 * SECOND).map_err(|e| e.to_string())?;
+        c.write_all(&heartbeat(7)).map_err(|e| e.to_string())?;
+        let _ = ground.set_read_timeout(Some(2 * SECOND));
+        let mut buf = [0u8; 300];
+        loop {
+            let n = ground
+                .recv(&mut buf)
+                .map_err(|e| format!("the ground station heard nothing of 7: {e}"))?;
+            let mut from_7 = false;
+            Parser::new().feed(&buf[..n], |f| from_7 |= f.source().system == 7);
+            if from_7 {
+                return Ok::<_, String>(c);
+            }
+        }
+    });
+    router.wait_for("new component 7.1 on tcp:127.0.0.1:");
+    client.write_all(&heartbeat(7)).expect("write");
+    assert!(fd_count(pid) <= 40, "within its limit");
+}
