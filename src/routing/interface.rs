@@ -96,6 +96,7 @@ impl Reopen {
         max_wait: MAX_BACKOFF,
         forget_after: None,
         down_since: None,
+        flapping: false,
     };
 
     /// A TCP client: tried again at once, then with a backoff up to 1 s; what was
@@ -106,6 +107,7 @@ impl Reopen {
             max_wait: MAX_RECONNECT_WAIT,
             forget_after: Some(forget_after),
             down_since: None,
+            flapping: false,
         }
     }
 
@@ -115,6 +117,7 @@ impl Reopen {
         max_wait: std::time::Duration::ZERO,
         forget_after: None,
         down_since: None,
+        flapping: false,
     };
 }
 
@@ -149,6 +152,9 @@ pub struct Reopen {
     pub forget_after: Option<std::time::Duration>,
     /// When it was lost (while it is down).
     pub down_since: Option<Timestamp>,
+    /// Its last connection was lost right after it opened (see
+    /// [`crate::routing::reconnect::STABLE`]): losses are not said again until one stays.
+    pub flapping: bool,
 }
 
 /// The core's state of one interface as it runs (what the file says about it is

@@ -711,3 +711,37 @@ fn a_tcp_server_out_of_descriptors_accepts_again_once_it_has_some() {
     client.write_all(&heartbeat(7)).expect("write");
     assert!(fd_count(pid) <= 40, "within its limit");
 }
+
+#[test]
+fn a_client_whose_server_closes_at_once_tries_again_with_a_growing_wait() {
+    let s = Scratch::new("tcp-flap");
+    // A server that accepts and closes at once (full, or refusing this client).
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let port = listener.local_addr().expect("addr").port();
+    let config = format!("tcp {{ connect 127.0.0.1:{port}; }}\n{ACCEPT_ALL}");
+    let mut router = Router::start(&s, &config, 1);
+    drop(listener.accept().expect("first connection"));
+    let start = Instant::now();
+    listener.set_nonblocking(true).expect("nonblocking");
+    let mut accepted = 1;
+    while start.elapsed() < 3 * SECOND {
+        match listener.accept() {
+            Ok((stream, _)) => {
+                accepted += 1;
+                drop(stream);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                thread::sleep(Duration::from_millis(1));
+            }
+            Err(e) => panic!("accept: {e}"),
+        }
+    }
+    // Tried again after 0.1, 0.2, 0.4, 0.8, 1 and 1 s: about 6 connections in 3 s.
+    assert!(
+        (3..=12).contains(&accepted),
+        "{accepted} connections in 3 s"
+    );
+    router
+        .err
+        .wait_for("lost again right after it opened", 5 * SECOND);
+}

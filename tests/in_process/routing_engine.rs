@@ -325,8 +325,8 @@ fn a_missing_device_is_retried_with_doubling_backoff_and_said_once() {
     assert!(notices(&mut e).contains(&Notice::Open(iface)));
     e.stream_opened(iface, now);
     assert_eq!(warnings(&mut e), ["serial device /dev/ttyX is back"]);
-    // Lost while open: tried again after the first backoff.
-    let lost = now + Duration::from_secs(1);
+    // Lost after it had stayed open: tried again after the first backoff.
+    let lost = now + Duration::from_secs(3);
     e.stream_lost(iface, lost, &"end of file");
     assert_eq!(
         warnings(&mut e),

@@ -184,7 +184,12 @@ impl Engine {
         let mut connection = Interface::reliable_stream(
             name,
             max_bitrate,
-            Kind::stream(link, Connection::Open, Some(listener), Reopen::ACCEPTED),
+            Kind::stream(
+                link,
+                Connection::open(now),
+                Some(listener),
+                Reopen::ACCEPTED,
+            ),
         );
         connection.signing = edge;
         connection.group = group;

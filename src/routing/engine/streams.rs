@@ -23,10 +23,11 @@ impl Engine {
             return;
         };
         let link = interface.own_link();
+        let frames = interface.parser.stats().frames;
         let Some(connection) = interface.connection_mut() else {
             return;
         };
-        *connection = Connection::Open;
+        connection.opened(now, frames);
         interface.parser.clear();
         if let Kind::Stream { reopen, .. } = &mut interface.kind
             && let Some(since) = reopen.down_since.take()
@@ -35,7 +36,8 @@ impl Engine {
         {
             self.core.router.clear_queue(link);
         }
-        if interface.io_errors > 0 {
+        let flapping = matches!(&interface.kind, Kind::Stream { reopen, .. } if reopen.flapping);
+        if interface.io_errors > 0 && !flapping {
             self.core
                 .notices
                 .push_back(Notice::Warning(format!("{} is back", interface.described)));
@@ -94,16 +96,28 @@ impl Engine {
             Kind::Stream {
                 connection, reopen, ..
             } => {
-                connection.lost(now, reopen.first_wait);
+                let frames = interface.parser.stats().frames;
+                let soon = connection.lost(now, reopen.first_wait, reopen.max_wait, frames);
                 reopen.down_since = Some(now);
                 interface.io_errors += 1;
-                self.core.notices.push_back(Notice::Warning(format!(
-                    "{} lost: {why}",
-                    interface.described
-                )));
+                // Lost again right after it opened: said once, then quiet (and not said
+                // back either) until a connection stays.
+                let said = match (soon, reopen.flapping) {
+                    (false, _) => Some(format!("{} lost: {why}", interface.described)),
+                    (true, false) => Some(format!(
+                        "{} lost again right after it opened: {why}; tried again with a growing wait, quietly until a connection stays",
+                        interface.described
+                    )),
+                    (true, true) => None,
+                };
+                reopen.flapping = soon;
+                if let Some(said) = said {
+                    self.core.notices.push_back(Notice::Warning(said));
+                }
             }
             Kind::DatagramClient { connection, .. } => {
-                connection.lost(now, FIRST_BACKOFF);
+                let frames = interface.parser.stats().frames;
+                connection.lost(now, FIRST_BACKOFF, MAX_BACKOFF, frames);
                 interface.io_errors += 1;
                 self.core.notices.push_back(Notice::Warning(format!(
                     "{} lost: {why}",
