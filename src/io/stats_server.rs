@@ -10,13 +10,15 @@
 //! arrive whole within [`DEADLINE`] and fit in [`MAX_HEAD`] bytes, and its answer must
 //! be taken within [`DEADLINE`] too, so a silent or slow client holds one thread for at
 //! most twice that and never anything the router needs. One request per connection
-//! (`Connection: close`).
+//! (`Connection: close`). Listening on a loopback address, it answers only requests
+//! whose `Host` names this machine (an IP address or `localhost`): a web page from
+//! elsewhere whose name was made to point at 127.0.0.1 (DNS rebinding) gets 403.
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::thread;
+use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use crate::config::StatsEndpoint;
@@ -35,12 +37,17 @@ const MAX_HEADERS: usize = 64;
 /// The latest snapshot, shared between the event loop and the server's threads.
 type Latest = Arc<Mutex<Arc<StatsSnapshot>>>;
 
+/// The `stats` block it serves as: its `allow` ranges may change while it runs.
+type Settings = Arc<Mutex<StatsEndpoint>>;
+
 /// A running statistics endpoint; the event loop gives it snapshots. Dropping it stops
-/// it and frees its port (a reload that changes the `stats` block).
+/// it and frees its port (a reload that moves the `stats` block) before it returns.
 pub struct StatsServer {
     latest: Latest,
+    settings: Settings,
     address: SocketAddr,
     stop: Arc<AtomicBool>,
+    accepting: Option<JoinHandle<()>>,
 }
 
 impl StatsServer {
@@ -50,17 +57,32 @@ impl StatsServer {
         let address = listener.local_addr()?;
         let latest: Latest = Arc::default();
         let shared = latest.clone();
-        let endpoint = endpoint.clone();
+        let settings: Settings = Arc::new(Mutex::new(endpoint.clone()));
+        let serving = settings.clone();
         let stop = Arc::new(AtomicBool::new(false));
         let stopped = stop.clone();
-        thread::Builder::new()
+        let accepting = thread::Builder::new()
             .name("stats-http".into())
-            .spawn(move || accept_loop(&listener, &endpoint, &shared, &stopped))?;
+            .spawn(move || accept_loop(&listener, &serving, &shared, &stopped))?;
         Ok(StatsServer {
             latest,
+            settings,
             address,
             stop,
+            accepting: Some(accepting),
         })
+    }
+
+    /// Serves as `endpoint` from now on if it listens where this one does (only its
+    /// `allow` ranges differ): true then, and the port is kept; false if it must be
+    /// started anew.
+    pub(crate) fn reconfigure(&self, endpoint: &StatsEndpoint) -> bool {
+        let mut settings = self.settings.lock().unwrap_or_else(PoisonError::into_inner);
+        if (settings.address, settings.port) != (endpoint.address, endpoint.port) {
+            return false;
+        }
+        *settings = endpoint.clone();
+        true
     }
 
     /// Where it listens.
@@ -76,8 +98,9 @@ impl StatsServer {
 }
 
 impl Drop for StatsServer {
-    /// Stops the accepting thread (woken by a connection of our own), which closes the
-    /// listening socket; requests being answered finish on their own threads.
+    /// Stops the accepting thread (woken by a connection of our own) and waits for it to
+    /// close the listening socket, so that the port is free when this returns; requests
+    /// being answered finish on their own threads.
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Release);
         let mut to = self.address;
@@ -87,16 +110,15 @@ impl Drop for StatsServer {
                 SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
             });
         }
-        let _ = TcpStream::connect_timeout(&to, Duration::from_millis(200));
+        let woken = TcpStream::connect_timeout(&to, Duration::from_millis(200)).is_ok();
+        // Only a thread that was woken is waited for: one that was not would never end.
+        if let Some(accepting) = self.accepting.take().filter(|_| woken) {
+            let _ = accepting.join();
+        }
     }
 }
 
-fn accept_loop(
-    listener: &TcpListener,
-    endpoint: &StatsEndpoint,
-    latest: &Latest,
-    stop: &AtomicBool,
-) {
+fn accept_loop(listener: &TcpListener, settings: &Settings, latest: &Latest, stop: &AtomicBool) {
     let active = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
         if stop.load(Ordering::Acquire) {
@@ -107,7 +129,11 @@ fn accept_loop(
             thread::sleep(Duration::from_millis(10));
             continue;
         };
-        let allowed = stream.peer_addr().is_ok_and(|p| endpoint.allows(p.ip()));
+        let (allowed, loopback) = {
+            let endpoint = settings.lock().unwrap_or_else(PoisonError::into_inner);
+            let allowed = stream.peer_addr().is_ok_and(|p| endpoint.allows(p.ip()));
+            (allowed, endpoint.address.is_loopback())
+        };
         if !allowed || active.load(Ordering::Acquire) >= MAX_CONNECTIONS {
             continue; // dropped: closed unanswered
         }
@@ -116,7 +142,7 @@ fn accept_loop(
         let spawned = thread::Builder::new()
             .name("stats-conn".into())
             .spawn(move || {
-                serve(stream, &latest);
+                serve(stream, &latest, loopback);
                 count.fetch_sub(1, Ordering::AcqRel);
             });
         if spawned.is_err() {
@@ -127,7 +153,7 @@ fn accept_loop(
 }
 
 /// Reads one request head and answers it, within the deadlines.
-fn serve(mut stream: TcpStream, latest: &Latest) {
+fn serve(mut stream: TcpStream, latest: &Latest, loopback: bool) {
     let _ = stream.set_nodelay(true);
     let Some(head) = read_head(&mut stream) else {
         return;
@@ -136,7 +162,7 @@ fn serve(mut stream: TcpStream, latest: &Latest) {
         .lock()
         .unwrap_or_else(PoisonError::into_inner)
         .clone();
-    let answer = respond(&head, &snapshot);
+    let answer = respond(&head, &snapshot, loopback);
     let deadline = Instant::now() + DEADLINE;
     let mut rest = &answer[..];
     while !rest.is_empty() {
@@ -206,8 +232,10 @@ fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
 }
 
 /// The whole answer (status line, headers, body) to the request head `head`, from
-/// `snapshot`. Pure: no I/O, never panics, and bounded by the snapshot's size.
-pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
+/// `snapshot`; with `loopback` (the endpoint listens on a loopback address), 403 unless
+/// every `Host` the request names is this machine. Pure: no I/O, never panics, and
+/// bounded by the snapshot's size.
+pub fn respond(head: &[u8], snapshot: &StatsSnapshot, loopback: bool) -> Vec<u8> {
     if head.len() > MAX_HEAD {
         return answer(
             431,
@@ -229,6 +257,19 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
         Ok(httparse::Status::Partial) | Err(_) => {
             return answer(400, "text/plain; charset=utf-8", b"bad request\n");
         }
+    }
+    if loopback
+        && !request
+            .headers
+            .iter()
+            .filter(|h| h.name.eq_ignore_ascii_case("host"))
+            .all(|h| names_this_machine(h.value))
+    {
+        return answer(
+            403,
+            "text/plain; charset=utf-8",
+            b"this endpoint answers requests for this machine only (Host: 127.0.0.1, [::1] or localhost)\n",
+        );
     }
     let bodyless = match request.method {
         Some("GET") => false,
@@ -267,6 +308,33 @@ pub fn respond(head: &[u8], snapshot: &StatsSnapshot) -> Vec<u8> {
     out
 }
 
+/// Whether a `Host` value names this machine: an IP address (a name that only resolves
+/// to one could be any site's), or `localhost`, with or without a port.
+fn names_this_machine(host: &[u8]) -> bool {
+    let Ok(host) = std::str::from_utf8(host) else {
+        return false;
+    };
+    let host = host.trim();
+    let name = match host.strip_prefix('[') {
+        // `[::1]:9100`
+        Some(rest) => {
+            return rest.split_once(']').is_some_and(|(address, port)| {
+                address.parse::<std::net::Ipv6Addr>().is_ok()
+                    && (port.is_empty()
+                        || port
+                            .strip_prefix(':')
+                            .is_some_and(|p| p.bytes().all(|b| b.is_ascii_digit())))
+            });
+        }
+        None => match host.rsplit_once(':') {
+            Some((name, port)) if port.bytes().all(|b| b.is_ascii_digit()) => name,
+            _ => host,
+        },
+    };
+    let name = name.strip_suffix('.').unwrap_or(name);
+    name.parse::<std::net::Ipv4Addr>().is_ok() || name.eq_ignore_ascii_case("localhost")
+}
+
 /// The path of a request target: the target itself in origin form (`/stats`), the part
 /// after the authority in absolute form (`http://127.0.0.1:9100/stats`, which servers
 /// must accept: RFC 9112 §3.2.2), `/` when that part is empty.
@@ -288,6 +356,7 @@ fn answer(status: u16, content_type: &str, body: &[u8]) -> Vec<u8> {
         200 => "OK",
         400 => "Bad Request",
         404 => "Not Found",
+        403 => "Forbidden",
         405 => "Method Not Allowed",
         431 => "Request Header Fields Too Large",
         _ => "Error",
@@ -311,7 +380,7 @@ mod tests {
     use super::*;
 
     fn status(head: &[u8]) -> String {
-        let a = respond(head, &StatsSnapshot::default());
+        let a = respond(head, &StatsSnapshot::default(), true);
         String::from_utf8_lossy(&a)
             .lines()
             .next()
@@ -322,7 +391,7 @@ mod tests {
     #[test]
     fn routes_and_errors() {
         assert_eq!(
-            status(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n"),
+            status(b"GET /metrics HTTP/1.1\r\nHost: localhost:9100\r\n\r\n"),
             "HTTP/1.1 200 OK"
         );
         assert_eq!(
@@ -366,10 +435,15 @@ mod tests {
     fn head_answers_like_get_without_a_body() {
         let snapshot = StatsSnapshot::default();
         for path in ["/stats", "/metrics", "/", "/nope"] {
-            let get = respond(format!("GET {path} HTTP/1.1\r\n\r\n").as_bytes(), &snapshot);
+            let get = respond(
+                format!("GET {path} HTTP/1.1\r\n\r\n").as_bytes(),
+                &snapshot,
+                true,
+            );
             let head = respond(
                 format!("HEAD {path} HTTP/1.1\r\n\r\n").as_bytes(),
                 &snapshot,
+                true,
             );
             let end = get
                 .windows(4)
@@ -379,5 +453,39 @@ mod tests {
             assert!(get.len() > end, "{path}: GET has a body");
             assert_eq!(head, get[..end], "{path}");
         }
+    }
+
+    #[test]
+    fn on_loopback_only_requests_for_this_machine_are_answered() {
+        let ask = |host: &str, loopback: bool| {
+            let head = format!("GET /stats HTTP/1.1\r\nHost: {host}\r\n\r\n");
+            let a = respond(head.as_bytes(), &StatsSnapshot::default(), loopback);
+            String::from_utf8_lossy(&a[..12]).to_string()
+        };
+        for host in [
+            "127.0.0.1",
+            "127.0.0.1:9100",
+            "[::1]:9100",
+            "[::1]",
+            "localhost",
+            "LocalHost:9100",
+            "localhost.",
+            "192.168.1.20:9100",
+        ] {
+            assert_eq!(ask(host, true), "HTTP/1.1 200", "{host}");
+        }
+        for host in [
+            "evil.example",
+            "evil.example:9100",
+            "localhost.evil.example",
+            "[::1",
+            "",
+        ] {
+            assert_eq!(ask(host, true), "HTTP/1.1 403", "{host}");
+            assert_eq!(ask(host, false), "HTTP/1.1 200", "{host}, not on loopback");
+        }
+        // Two Host fields: both must name this machine.
+        let two = b"GET /stats HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: evil.example\r\n\r\n";
+        assert!(respond(two, &StatsSnapshot::default(), true).starts_with(b"HTTP/1.1 403"));
     }
 }

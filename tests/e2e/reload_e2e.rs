@@ -800,7 +800,7 @@ fn an_abstract_notify_socket_works_and_no_watchdog_unless_asked() {
 fn stats_json(port: u16) -> Option<serde_json::Value> {
     let mut s = TcpStream::connect(("127.0.0.1", port)).ok()?;
     s.set_read_timeout(Some(5 * SECOND)).ok()?;
-    s.write_all(b"GET /stats HTTP/1.1\r\nHost: x\r\n\r\n")
+    s.write_all(b"GET /stats HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
         .ok()?;
     let mut answer = String::new();
     s.read_to_string(&mut answer).ok()?;
@@ -848,6 +848,60 @@ fn the_stats_endpoint_is_kept_or_moved_by_a_reload() {
     eventually("the old port closed", 5 * SECOND, || {
         TcpStream::connect(("127.0.0.1", http_a)).is_err()
     });
+    router.stop();
+}
+
+/// A reload that changes only the `allow` ranges of the statistics endpoint keeps its
+/// port (every time: it used to be restarted on the same port, which the old listener
+/// could still hold); one that gives the endpoint's port to an interface opens that
+/// interface, and a request naming another site than this machine is refused.
+#[test]
+fn the_stats_endpoint_keeps_its_port_when_only_allow_changes_and_can_give_it_up() {
+    let s = Scratch::new("reload-stats-allow");
+    let (port, http, http_b) = (free_udp_port(), free_tcp_port(), free_tcp_port());
+    let udp = format!("udp {{ port {port}; address 127.0.0.1; }}\ndefault_action accept;\n");
+    let with_allow = |range: &str| format!("{udp}stats {{ port {http}; allow {range}; }}\n");
+    let mut router = Router::start(&s, &with_allow("127.0.0.0/8"), 1);
+    let a = udp_peer(&mut router, port, 1);
+    let name = a.local_addr().expect("addr").to_string();
+    a.send(&attitude(1, 1)).expect("send");
+    let mut before = frames_in_at_least(http, &name, 2);
+    for n in 0..20 {
+        let range = if n % 2 == 0 {
+            "127.0.0.1/32"
+        } else {
+            "127.0.0.0/8"
+        };
+        reload(&mut router, &with_allow(range));
+        a.send(&attitude(1, 2)).expect("send");
+        before = frames_in_at_least(http, &name, before + 1);
+    }
+    let seen = &router.err.seen;
+    let said = |text: &str| seen.iter().filter(|l| l.contains(text)).count();
+    assert_eq!(
+        said("reload: statistics endpoint's allow changed"),
+        20,
+        "{seen:?}"
+    );
+    assert_eq!(said("cannot listen"), 0, "{seen:?}");
+    // A web page whose name was pointed at 127.0.0.1 is not answered.
+    let mut c = TcpStream::connect(("127.0.0.1", http)).expect("connect");
+    c.write_all(b"GET /stats HTTP/1.1\r\nHost: evil.example:9100\r\n\r\n")
+        .expect("write");
+    let mut answer = String::new();
+    c.read_to_string(&mut answer).expect("read");
+    assert!(answer.starts_with("HTTP/1.1 403"), "{answer}");
+    // The endpoint moves, and a new TCP server takes its old port in the same reload.
+    let line = reload(
+        &mut router,
+        &format!("{udp}stats {{ port {http_b}; }}\ntcp {{ port {http}; address 127.0.0.1; }}\n"),
+    );
+    assert!(line.contains("+1 interface, -0, 0 changed"), "{line}");
+    assert!(!line.contains("not opened"), "{line}");
+    let mut conn = connect(&format!("127.0.0.1:{http}"));
+    conn.write_all(&heartbeat(3)).expect("write");
+    router.wait_for("new component 3.1 on tcp:127.0.0.1:");
+    assert!(frames_in_at_least(http_b, &name, before) >= before);
     router.stop();
 }
 

@@ -395,7 +395,7 @@ fn silent_and_slow_clients_stall_neither_routing_nor_other_requests() {
     // answer a byte every 100 ms.
     let silent = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
     let mut slow = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
-    slow.write_all(b"GET /stats HTTP/1.1\r\nHost: x\r\n\r\n")
+    slow.write_all(b"GET /stats HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
         .expect("request");
     // Another client is answered at once, though the silent one holds its place for
     // up to 2 s (a server of one connection at a time would make it wait that long).
@@ -593,7 +593,7 @@ fn head_and_the_absolute_form_are_understood() {
     for path in ["/stats", "/metrics", "/"] {
         let head = raw(
             http_port,
-            &format!("HEAD {path} HTTP/1.1\r\nHost: x\r\n\r\n"),
+            &format!("HEAD {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"),
         );
         let (status, rest) = head.split_once("\r\n").expect("a status line");
         assert_eq!(status, "HTTP/1.1 200 OK", "HEAD {path}");
@@ -627,13 +627,13 @@ fn head_and_the_absolute_form_are_understood() {
 fn answers_are_whole_whatever_the_client_sent_after_the_head() {
     let (_scratch, router, http_port) = endpoint_router("stats-linger");
     let body = "x".repeat(16 * 1024);
-    let second = "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n".repeat(400);
+    let second = "GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".repeat(400);
     for request in [
         format!(
-            "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n{body}",
+            "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {}\r\n\r\n{body}",
             body.len()
         ),
-        format!("GET /stats HTTP/1.1\r\nHost: x\r\n\r\n{second}"),
+        format!("GET /stats HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n{second}"),
     ] {
         let mut s = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
         s.set_read_timeout(Some(5 * SECOND)).expect("timeout");
@@ -654,11 +654,11 @@ fn answers_are_whole_whatever_the_client_sent_after_the_head() {
         many.starts_with("HTTP/1.1 431 Request Header Fields Too Large\r\n"),
         "{many}"
     );
-    let bare = raw(http_port, "GET /stats HTTP/1.1\nHost: x\n\n");
+    let bare = raw(http_port, "GET /stats HTTP/1.1\nHost: 127.0.0.1\n\n");
     assert!(bare.starts_with("HTTP/1.1 200 OK\r\n"), "{bare}");
     let mut s = TcpStream::connect(("127.0.0.1", http_port)).expect("connect");
     s.set_read_timeout(Some(5 * SECOND)).expect("timeout");
-    s.write_all(b"GET /stats HTTP/1.1\r\nHost: x\r\n")
+    s.write_all(b"GET /stats HTTP/1.1\r\nHost: 127.0.0.1\r\n")
         .expect("request");
     s.shutdown(std::net::Shutdown::Write).expect("half-close");
     let mut cut = String::new();

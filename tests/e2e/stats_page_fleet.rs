@@ -401,7 +401,7 @@ fn get(port: u16, target: &str) -> String {
     let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).expect("connect");
     c.set_read_timeout(Some(Duration::from_secs(5)))
         .expect("timeout");
-    write!(c, "GET {target} HTTP/1.1\r\nHost: x\r\n\r\n").expect("send");
+    write!(c, "GET {target} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").expect("send");
     let mut answer = String::new();
     let _ = c.read_to_string(&mut answer);
     assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");

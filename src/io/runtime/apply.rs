@@ -122,6 +122,17 @@ impl Runtime {
         }
         let config = &file.config;
         let mut done = self.engine.configure(config, &file.keys, now);
+        // A statistics endpoint that listens where it did only takes its new `allow`;
+        // one that moves lets its port go before any interface opens (a reload may give
+        // that port to one), and the new one starts after them.
+        let stats_in_place = done.stats_changed
+            && match (&self.stats, &config.stats) {
+                (Some(server), Some(endpoint)) => server.reconfigure(endpoint),
+                _ => false,
+            };
+        if done.stats_changed && !stats_in_place {
+            self.stats = None;
+        }
         for request in std::mem::take(&mut done.requests) {
             match request {
                 Request::Close(id) => self.remove(id),
@@ -186,9 +197,9 @@ impl Runtime {
                 (Some(_), None) => self.engine.record_not_started(),
             }
         }
-        if done.stats_changed {
-            // The old endpoint lets its port go before the new one takes it.
-            self.stats = None;
+        if stats_in_place {
+            log::stderr_text("reload: statistics endpoint's allow changed\n");
+        } else if done.stats_changed {
             match start_stats(config) {
                 Ok(None) => log::stderr_text("reload: statistics endpoint stopped\n"),
                 Ok(Some(server)) => {
