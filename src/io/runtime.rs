@@ -985,11 +985,16 @@ fn wall_micros() -> u64 {
 
 /// Catches SIGXFSZ (a file-size limit reached), so that a write beyond the limit fails
 /// with an error, which the writer of `what` handles, instead of ending the process.
+/// Once per process: each writer a reload starts calls it, and a registration is never
+/// undone.
 fn catch_file_size_signal(what: &str) {
-    let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
-        log::warn(&format_args!("{what}: cannot catch SIGXFSZ: {e}"));
-    }
+    static CAUGHT: std::sync::Once = std::sync::Once::new();
+    CAUGHT.call_once(|| {
+        let caught = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        if let Err(e) = signal_hook::flag::register(SIGXFSZ, caught) {
+            log::warn(&format_args!("{what}: cannot catch SIGXFSZ: {e}"));
+        }
+    });
 }
 
 /// Starts the flight log writer when `config` has a `flight_log` block.
@@ -1067,6 +1072,9 @@ fn start(
     loglevel: u8,
     source: Option<&str>,
 ) -> io::Result<Runtime> {
+    // First: from here on a signal waits for the loop instead of acting at once (a
+    // SIGHUP would otherwise end the process while it opens its interfaces).
+    let mut signals = Signals::new([SIGINT, SIGTERM, SIGUSR1, SIGHUP])?;
     let poll = Poll::new()?;
     let mut engine = Engine::new(config, options(config, loglevel));
     let logger = Logger::new(loglevel);
@@ -1083,7 +1091,6 @@ fn start(
     let timer = TimerFd::new()?;
     poll.registry()
         .register(&mut SourceFd(&timer.as_raw_fd()), TIMER, Interest::READABLE)?;
-    let mut signals = Signals::new([SIGINT, SIGTERM, SIGUSR1, SIGHUP])?;
     poll.registry()
         .register(&mut signals, SIGNALS, Interest::READABLE)?;
     if config.interfaces.is_empty() {

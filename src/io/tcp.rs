@@ -1,8 +1,9 @@
 //! The drivers of one `tcp { }` interface: a server's listening socket, whose every
 //! accepted connection gets a driver of its own, and the connection of a client, made
 //! without blocking and made again whenever the core asks. Every connection has
-//! `TCP_NODELAY` (a frame leaves at once, not when Nagle's algorithm lets it) and
-//! keepalive (a peer that vanished without a word is noticed within about a minute).
+//! `TCP_NODELAY` (a frame leaves at once, not when Nagle's algorithm lets it), and
+//! keepalive and `TCP_USER_TIMEOUT` (a peer that vanished without a word, whether the
+//! connection was idle or being sent to, is noticed within about a minute).
 
 use std::io::{self, Read};
 use std::net::{IpAddr, Shutdown, SocketAddr, TcpListener, TcpStream};
@@ -29,6 +30,13 @@ const ACCEPTS_PER_TURN: usize = 64;
 const ACCEPT_RETRY: Duration = Duration::from_secs(1);
 /// Idle time before the first keepalive probe, and between probes.
 const KEEPALIVE: Duration = Duration::from_secs(10);
+/// Longest a connection waits for its peer to acknowledge what was sent (or a client
+/// for its server to answer the connection) before it is given up: keepalive probes
+/// only an idle connection, and without this a peer that vanished while frames were
+/// being sent to it (a radio out of range, a dropped cellular link) would be noticed
+/// only after the system's retransmissions, about 15 minutes, and an unanswered
+/// connection attempt after about two.
+const USER_TIMEOUT: Duration = Duration::from_secs(50);
 
 /// Whether `accept` failed for the connection it was taking, not for the listener:
 /// Linux passes such errors of the network on to the caller, who is to try again.
@@ -56,7 +64,9 @@ fn tune(stream: &TcpStream) -> io::Result<()> {
         .with_time(KEEPALIVE)
         .with_interval(KEEPALIVE)
         .with_retries(4);
-    socket2::SockRef::from(stream).set_tcp_keepalive(&keepalive)
+    let socket = socket2::SockRef::from(stream);
+    socket.set_tcp_keepalive(&keepalive)?;
+    socket.set_tcp_user_timeout(Some(USER_TIMEOUT))
 }
 
 /// The label of `config` in messages and counters: `tcp ADDRESS:PORT` for a server,
@@ -249,6 +259,8 @@ impl TcpStreamDriver {
     fn connect(to: SocketAddr, local: Option<IpAddr>) -> io::Result<(TcpStream, bool)> {
         let socket = Socket::new(Domain::for_address(to), Type::STREAM, Some(Protocol::TCP))?;
         socket.set_nonblocking(true)?;
+        // Before the attempt, so that it bounds the attempt too.
+        socket.set_tcp_user_timeout(Some(USER_TIMEOUT))?;
         if let Some(ip) = local {
             socket.bind(&SocketAddr::new(ip, 0).into())?;
         }
@@ -421,4 +433,23 @@ pub(super) fn drain(mut stream: &TcpStream) -> Input {
         }
     }
     Input::Open
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_connection_gives_up_a_silent_peer_within_about_a_minute() {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let to = listener.local_addr().expect("addr");
+        let (client, _) = TcpStreamDriver::connect(to, None).expect("connect");
+        let (accepted, _) = listener.accept().expect("accept");
+        tune(&accepted).expect("tune");
+        for stream in [&client, &accepted] {
+            let socket = socket2::SockRef::from(stream);
+            assert_eq!(socket.tcp_user_timeout().ok(), Some(Some(USER_TIMEOUT)));
+            assert!(socket.keepalive().unwrap_or(false));
+        }
+    }
 }
