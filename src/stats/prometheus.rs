@@ -203,6 +203,39 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
             o.sample(name, &[("interface", i.label.as_str())], value(i));
         }
     }
+    o.family(
+        "mavtables_interface_refused_total",
+        "counter",
+        "Remotes a server refused, by reason: not_allowed (outside allow), max_peers.",
+    );
+    for i in &s.interfaces {
+        for (reason, n) in [
+            ("not_allowed", i.refused_not_allowed),
+            ("max_peers", i.refused_max_peers),
+        ] {
+            let labels = [("interface", i.label.as_str()), ("reason", reason)];
+            o.sample("mavtables_interface_refused_total", &labels, n);
+        }
+    }
+    o.family(
+        "mavtables_interface_signing_total",
+        "counter",
+        "Signing on interfaces with a key, by result: verified, refused (bad_signature, replayed, out_of_window, unsigned), signed_out.",
+    );
+    for i in &s.interfaces {
+        let Some(g) = &i.signing else { continue };
+        for (result, n) in [
+            ("verified", g.verified),
+            ("bad_signature", g.bad_signature),
+            ("replayed", g.replayed),
+            ("out_of_window", g.out_of_window),
+            ("unsigned", g.unsigned),
+            ("signed_out", g.signed_out),
+        ] {
+            let labels = [("interface", i.label.as_str()), ("result", result)];
+            o.sample("mavtables_interface_signing_total", &labels, n);
+        }
+    }
     type RuleField = (&'static str, &'static str, fn(&super::RuleStats) -> u64);
     let per_rule: [RuleField; 4] = [
         (
@@ -300,6 +333,32 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
         &[],
         s.rate_streams_evicted,
     );
+    let scalars: [(&str, &str, u64); 4] = [
+        (
+            "mavtables_sources_evicted_total",
+            "(Source, message) pairs that lost their place in the bounded table.",
+            s.sources_evicted,
+        ),
+        (
+            "mavtables_sequence_untracked_total",
+            "Frames of sources beyond the sequence table's bound.",
+            s.sequence_untracked,
+        ),
+        (
+            "mavtables_filter_cache_hits_total",
+            "Filter lookups answered by the verdict memo.",
+            s.filter_cache_hits,
+        ),
+        (
+            "mavtables_filter_cache_misses_total",
+            "Filter lookups that walked the rules.",
+            s.filter_cache_misses,
+        ),
+    ];
+    for (name, help, value) in scalars {
+        o.family(name, "counter", help);
+        o.sample(name, &[], value);
+    }
     o.family(
         "mavtables_queued_bytes",
         "gauge",
@@ -438,6 +497,44 @@ mod tests {
         for line in text.lines().filter(|l| !l.starts_with('#')) {
             let name = line.split(['{', ' ']).next().unwrap_or("");
             assert!(text.contains(&format!("# TYPE {name} ")), "{name} untyped");
+        }
+    }
+
+    #[test]
+    fn every_number_of_the_json_has_a_metric() {
+        let s = StatsSnapshot {
+            interfaces: vec![crate::stats::InterfaceStats {
+                label: "tcp 0.0.0.0:5760".into(),
+                refused_not_allowed: 3,
+                refused_max_peers: 4,
+                signing: Some(crate::stats::SigningStats {
+                    verified: 5,
+                    replayed: 6,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            }],
+            sources_evicted: 7,
+            sequence_untracked: 8,
+            filter_cache_hits: 9,
+            filter_cache_misses: 10,
+            ..StatsSnapshot::default()
+        };
+        let text = render(&s);
+        for sample in [
+            "mavtables_interface_refused_total{interface=\"tcp 0.0.0.0:5760\",reason=\"not_allowed\"} 3",
+            "mavtables_interface_refused_total{interface=\"tcp 0.0.0.0:5760\",reason=\"max_peers\"} 4",
+            "mavtables_interface_signing_total{interface=\"tcp 0.0.0.0:5760\",result=\"verified\"} 5",
+            "mavtables_interface_signing_total{interface=\"tcp 0.0.0.0:5760\",result=\"replayed\"} 6",
+            "mavtables_sources_evicted_total 7",
+            "mavtables_sequence_untracked_total 8",
+            "mavtables_filter_cache_hits_total 9",
+            "mavtables_filter_cache_misses_total 10",
+        ] {
+            assert!(
+                text.contains(&format!("{sample}\n")),
+                "{sample} missing:\n{text}"
+            );
         }
     }
 }
