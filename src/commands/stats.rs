@@ -2,7 +2,8 @@
 //! its chains, rules and links like `iptables -L -v`; `--watch` redraws it every second.
 //! Its command line is read in [`crate::cli`].
 
-pub(crate) mod http;
+#[doc(hidden)]
+pub mod http;
 pub(crate) mod render;
 pub(crate) mod table;
 

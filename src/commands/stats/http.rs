@@ -18,13 +18,16 @@ pub(crate) fn get(authority: &str, path: &str, timeout: Duration) -> Result<Vec<
         .to_socket_addrs()
         .map_err(|e| format!("cannot resolve {authority}: {e}"))?
         .collect();
-    let mut stream = connect(authority, &addrs, timeout)?;
+    let mut stream = connect(authority, &addrs, deadline)?;
     let request = format!(
         "GET {path} HTTP/1.1\r\nHost: {authority}\r\nAccept: application/json\r\n\
          User-Agent: mavtables/{}\r\nConnection: close\r\n\r\n",
         env!("CARGO_PKG_VERSION")
     );
-    let _ = stream.set_write_timeout(Some(timeout));
+    let left = deadline.saturating_duration_since(Instant::now());
+    if left.is_zero() || stream.set_write_timeout(Some(left)).is_err() {
+        return Err(format!("{authority} did not answer in time"));
+    }
     stream
         .write_all(request.as_bytes())
         .map_err(|e| format!("{authority}: sending the request failed: {e}"))?;
@@ -32,11 +35,19 @@ pub(crate) fn get(authority: &str, path: &str, timeout: Duration) -> Result<Vec<
     parse_response(&raw).map_err(|e| format!("{authority} (GET {path}): {e}"))
 }
 
-/// The first address of `addrs` that accepts a connection.
-fn connect(authority: &str, addrs: &[SocketAddr], timeout: Duration) -> Result<TcpStream, String> {
+/// The first address of `addrs` that accepts a connection before `deadline` (each
+/// attempt gets the time left, so one address that does not answer cannot use up the
+/// time of the exchange and leave the next one none).
+fn connect(authority: &str, addrs: &[SocketAddr], deadline: Instant) -> Result<TcpStream, String> {
     let mut last = None;
-    for addr in addrs {
-        match TcpStream::connect_timeout(addr, timeout) {
+    for (i, addr) in addrs.iter().enumerate() {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            break;
+        }
+        // Addresses still to try after this one share the time with it.
+        let share = left / u32::try_from(addrs.len() - i).unwrap_or(u32::MAX);
+        match TcpStream::connect_timeout(addr, share) {
             Ok(s) => return Ok(s),
             Err(e) => last = Some(e),
         }
@@ -45,7 +56,8 @@ fn connect(authority: &str, addrs: &[SocketAddr], timeout: Duration) -> Result<T
         Some(e) => format!(
             "cannot connect to {authority}: {e} (is mavtables running with a stats block there?)"
         ),
-        None => format!("cannot resolve {authority}: no address"),
+        None if addrs.is_empty() => format!("cannot resolve {authority}: no address"),
+        None => format!("{authority} did not answer in time"),
     })
 }
 
@@ -132,14 +144,15 @@ fn head(raw: &[u8]) -> Result<Option<Head>, &'static str> {
     }))
 }
 
-/// The total length of an answer whose head is complete and names a `Content-Length`.
-fn complete_length(raw: &[u8]) -> Option<usize> {
+/// The total length of an answer whose head is complete and names a `Content-Length`
+/// (public for the fuzz target).
+pub fn complete_length(raw: &[u8]) -> Option<usize> {
     let head = head(raw).ok()??;
     head.len.checked_add(head.content_length?.ok()?)
 }
 
-/// The body of a complete answer, if its status is 200.
-pub(crate) fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
+/// The body of a complete answer, if its status is 200 (public for the fuzz target).
+pub fn parse_response(raw: &[u8]) -> Result<Vec<u8>, String> {
     let head = match head(raw) {
         Ok(Some(head)) => head,
         Ok(None) if raw.is_empty() => return Err("closed the connection without answering".into()),
@@ -185,6 +198,41 @@ fn dechunk(mut body: &[u8]) -> Option<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_address_that_does_not_answer_leaves_time_for_the_next() {
+        // A listener whose backlog is full: the system drops further connection
+        // attempts, which then wait for an answer that never comes.
+        let full = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None)
+            .expect("socket");
+        full.bind(&SocketAddr::from(([127, 0, 0, 1], 0)).into())
+            .expect("bind");
+        full.listen(0).expect("listen");
+        let silent = full
+            .local_addr()
+            .ok()
+            .and_then(|a| a.as_socket())
+            .expect("addr");
+        let _filling: Vec<socket2::Socket> = (0..8)
+            .filter_map(|_| {
+                let s = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None)
+                    .ok()?;
+                s.set_nonblocking(true).ok()?;
+                let _ = s.connect(&silent.into());
+                Some(s)
+            })
+            .collect();
+        let answering = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let there = answering.local_addr().expect("addr");
+        let start = Instant::now();
+        let got = connect("x", &[silent, there], start + Duration::from_secs(3));
+        assert_eq!(got.ok().and_then(|s| s.peer_addr().ok()), Some(there));
+        assert!(
+            start.elapsed() < Duration::from_millis(2500),
+            "{:?}",
+            start.elapsed()
+        );
+    }
 
     #[test]
     fn answers_with_length_chunks_or_close() {
