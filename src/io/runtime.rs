@@ -716,7 +716,10 @@ impl Runtime {
                 Some(due) if now >= due => match slot.driver.expire(&mut self.engine, now) {
                     Progress::Lost => {
                         self.lost(key);
-                        false
+                        // A client gave up an attempt: it is made again, and watched again.
+                        self.slots
+                            .get(key)
+                            .is_some_and(|s| s.driver.deadline().is_some())
                     }
                     // It wants to be read again (a listener that was refused a
                     // connection tries once more).

@@ -37,6 +37,11 @@ const KEEPALIVE: Duration = Duration::from_secs(10);
 /// only after the system's retransmissions, about 15 minutes, and an unanswered
 /// connection attempt after about two.
 const USER_TIMEOUT: Duration = Duration::from_secs(50);
+/// Longest a client's attempt (its look-up and connection) may take before it is given
+/// up and made again with the backoff: a server behind a network that drops packets
+/// (a link that went down) would otherwise hold the attempt for [`USER_TIMEOUT`], and
+/// the client would reconnect that late after the network came back.
+const CONNECT_LIMIT: Duration = Duration::from_secs(5);
 
 /// Whether `accept` failed for the connection it was taking, not for the listener:
 /// Linux passes such errors of the network on to the caller, who is to try again.
@@ -101,6 +106,7 @@ impl TcpListenerDriver {
                 stream: Some(stream),
                 client: None,
                 connecting: false,
+                connect_by: None,
                 io: StreamIo::default(),
             })
         });
@@ -234,6 +240,8 @@ pub struct TcpStreamDriver {
     client: Option<Client>,
     /// A client's connection is being made (its remote looked up, or connected to).
     connecting: bool,
+    /// When a client's attempt under way is given up ([`CONNECT_LIMIT`]).
+    connect_by: Option<Timestamp>,
     io: StreamIo,
 }
 
@@ -250,6 +258,7 @@ impl TcpStreamDriver {
                 lookup: None,
             }),
             connecting: false,
+            connect_by: None,
             io: StreamIo::default(),
         }
     }
@@ -328,10 +337,11 @@ impl Driver for TcpStreamDriver {
         self.stream.as_ref().map(AsRawFd::as_raw_fd)
     }
 
-    fn open(&mut self, _engine: &mut Engine, _now: Timestamp) -> io::Result<bool> {
+    fn open(&mut self, _engine: &mut Engine, now: Timestamp) -> io::Result<bool> {
         let Some(client) = &mut self.client else {
             return Ok(true);
         };
+        self.connect_by = Some(now + CONNECT_LIMIT);
         match Lookup::start(&client.remote, &client.waker).poll() {
             Ok(to) => {
                 let (stream, done) = Self::connect(to?, client.local)?;
@@ -383,6 +393,28 @@ impl Driver for TcpStreamDriver {
 
     fn idle(&self) -> bool {
         self.io.idle() || self.stream.is_none()
+    }
+
+    fn deadline(&self) -> Option<Timestamp> {
+        // A client always has one, so that the loop keeps looking (once a second).
+        self.client.as_ref()?;
+        Some(match self.connect_by {
+            Some(by) if self.connecting => by,
+            _ => Timestamp::from_nanos(u64::MAX),
+        })
+    }
+
+    fn expire(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        if !self.connecting {
+            return Progress::Done;
+        }
+        self.connecting = false;
+        engine.stream_open_failed(
+            self.interface,
+            now,
+            &format!("no answer within {} s", CONNECT_LIMIT.as_secs()),
+        );
+        Progress::Lost
     }
 
     fn shut_write(&mut self) -> bool {

@@ -745,3 +745,50 @@ fn a_client_whose_server_closes_at_once_tries_again_with_a_growing_wait() {
         .err
         .wait_for("lost again right after it opened", 5 * SECOND);
 }
+
+#[test]
+fn a_client_gives_up_an_attempt_nobody_answers_and_connects_once_the_server_answers() {
+    let s = Scratch::new("tcp-silent-server");
+    // A server whose backlog is full: the system drops further attempts unanswered, as
+    // a network that went down does.
+    let server =
+        socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).expect("socket");
+    server
+        .bind(&SocketAddr::from(([127, 0, 0, 1], 0)).into())
+        .expect("bind");
+    server.listen(0).expect("listen");
+    let addr = server
+        .local_addr()
+        .ok()
+        .and_then(|a| a.as_socket())
+        .expect("addr");
+    let filling: Vec<socket2::Socket> = (0..8)
+        .filter_map(|_| {
+            let c =
+                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).ok()?;
+            c.set_nonblocking(true).ok()?;
+            let _ = c.connect(&addr.into());
+            Some(c)
+        })
+        .collect();
+    let config = format!("tcp {{ connect {addr}; }}\n{ACCEPT_ALL}");
+    let mut router = Router::start(&s, &config, 1);
+    let said = router.err.wait_for("no answer within 5 s", 10 * SECOND);
+    assert!(said.contains(&format!("tcp connect {addr}")), "{said}");
+    // The server answers again: the next attempt connects.
+    drop(filling);
+    let listener: TcpListener = server.into();
+    listener.set_nonblocking(true).expect("nonblocking");
+    // Ours were closed (they read as ended); the router's is open.
+    let mut stream = eventually("the router connected", 15 * SECOND, || {
+        let (c, _) = listener.accept().ok()?;
+        c.set_nonblocking(true).ok()?;
+        match (&c).read(&mut [0u8; 1]) {
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => Some(c),
+            _ => None,
+        }
+    });
+    stream.set_nonblocking(false).expect("blocking");
+    stream.write_all(&heartbeat(5)).expect("write");
+    router.wait_for(&format!("new component 5.1 on tcp:{addr}"));
+}
