@@ -739,12 +739,21 @@ impl Runtime {
     /// Feeds systemd's watchdog when it is due (at half its interval): from the loop's
     /// own turn, so a loop that is stuck is restarted.
     fn feed_watchdog(&mut self, now: Timestamp) {
-        let (Some(notifier), Some(due)) = (&self.notifier, self.next_watchdog) else {
+        let Some(due) = self.next_watchdog else {
             return;
         };
-        if now < due {
-            return;
+        if now >= due {
+            self.feed_watchdog_now(now);
         }
+    }
+
+    /// Feeds systemd's watchdog now (when it asked for one): before and between the
+    /// bounded waits of a reload (for the writers of files it replaces), which together
+    /// may take longer than half the watchdog's interval.
+    pub(super) fn feed_watchdog_now(&mut self, now: Timestamp) {
+        let (Some(notifier), Some(_)) = (&self.notifier, self.next_watchdog) else {
+            return;
+        };
         notifier.watchdog();
         let interval = notifier
             .watchdog_interval()

@@ -61,6 +61,8 @@ impl Runtime {
         if let Some(notifier) = &self.notifier {
             notifier.reloading();
         }
+        // The loop is sound here; what follows may wait on disks for a few seconds.
+        self.feed_watchdog_now(now);
         match &self.source {
             None => log::warn(
                 &"SIGHUP: the configuration came from command-line endpoints; there is no file to read again",
@@ -157,6 +159,7 @@ impl Runtime {
         self.tell_wall_clock(now);
         if done.signing_state_changed {
             if let Some(file) = self.state_file.take() {
+                self.feed_watchdog_now(self.now());
                 file.finish(self.engine.signing_state(true).as_ref());
             }
             match open_state_file(config, &mut self.engine, now) {
@@ -179,6 +182,7 @@ impl Runtime {
             // The engine ended the old log; its last writes go to the old writer.
             self.write_flight_log();
             if let Some(mut writer) = self.flight_log.take() {
+                self.feed_watchdog_now(self.now());
                 writer.finish(RECORDER_FINISH);
             }
             self.flight_log = start_flight_log(config);
@@ -186,6 +190,7 @@ impl Runtime {
         if done.record_changed {
             self.record();
             if let Some(mut recorder) = self.recorder.take() {
+                self.feed_watchdog_now(self.now());
                 recorder.finish(RECORDER_FINISH);
             }
             self.engine.stop_recording();
