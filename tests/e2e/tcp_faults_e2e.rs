@@ -638,6 +638,20 @@ fn a_peer_that_keeps_sending_gets_everything_at_shutdown() {
     );
 }
 
+/// `n` connection attempts to `addr`, started without waiting for them (those the
+/// server's full backlog drops stay under way).
+fn connections_not_waited_for(addr: SocketAddr, n: usize) -> Vec<socket2::Socket> {
+    (0..n)
+        .filter_map(|_| {
+            let c =
+                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).ok()?;
+            c.set_nonblocking(true).ok()?;
+            let _ = c.connect(&addr.into());
+            Some(c)
+        })
+        .collect()
+}
+
 /// Lowers the open-file limit of process `pid` to `n` (util-linux's `prlimit`).
 fn limit_descriptors(pid: u32, n: usize) {
     let status = std::process::Command::new("prlimit")
@@ -677,15 +691,7 @@ fn a_tcp_server_out_of_descriptors_accepts_again_once_it_has_some() {
     // Far more connections than the router has descriptors for, and than its listener's
     // backlog holds: the ones it cannot take wait in the backlog until it is full.
     let addr: SocketAddr = to.parse().expect("address");
-    let waiting: Vec<socket2::Socket> = (0..300)
-        .filter_map(|_| {
-            let socket =
-                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).ok()?;
-            socket.set_nonblocking(true).ok()?;
-            let _ = socket.connect(&addr.into());
-            Some(socket)
-        })
-        .collect();
+    let waiting = connections_not_waited_for(addr, 300);
     router.err.wait_for("receive failed", 10 * SECOND);
     // They all go; the router gets its descriptors back as it finds them closed.
     drop(waiting);
@@ -762,15 +768,7 @@ fn a_client_gives_up_an_attempt_nobody_answers_and_connects_once_the_server_answ
         .ok()
         .and_then(|a| a.as_socket())
         .expect("addr");
-    let filling: Vec<socket2::Socket> = (0..8)
-        .filter_map(|_| {
-            let c =
-                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).ok()?;
-            c.set_nonblocking(true).ok()?;
-            let _ = c.connect(&addr.into());
-            Some(c)
-        })
-        .collect();
+    let filling = connections_not_waited_for(addr, 8);
     let config = format!("tcp {{ connect {addr}; }}\n{ACCEPT_ALL}");
     let mut router = Router::start(&s, &config, 1);
     let said = router.err.wait_for("no answer within 5 s", 10 * SECOND);
