@@ -70,9 +70,16 @@ impl Notifier {
         let _ = self.socket.send_to_addr(message.as_bytes(), &self.to);
     }
 
-    /// `READY=1`: started, or done reloading.
+    /// `READY=1`: started.
     pub(super) fn ready(&self) {
-        self.send("READY=1\nSTATUS=routing\n");
+        self.ready_with("routing");
+    }
+
+    /// `READY=1` with `status` (one line: what `systemctl status` shows), after a reload
+    /// that worked or did not.
+    pub(super) fn ready_with(&self, status: &str) {
+        let status = status.replace(['\n', '\r'], " ");
+        self.send(&format!("READY=1\nSTATUS={status}\n"));
     }
 
     /// `RELOADING=1` with the monotonic time the reload began.

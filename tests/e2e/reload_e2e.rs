@@ -768,8 +768,21 @@ fn systemd_hears_ready_reloading_watchdog_and_stopping() {
         .find_map(|l| l.strip_prefix("MONOTONIC_USEC="))
         .unwrap_or_else(|| panic!("no MONOTONIC_USEC in {reloading:?}"));
     assert!(usec.parse::<u64>().is_ok_and(|v| v > 0), "{reloading}");
-    expect_notification(&systemd, "READY=1", &mut seen);
+    let ready = expect_notification(&systemd, "READY=1", &mut seen);
+    assert!(
+        ready.contains("STATUS=routing; configuration reloaded: 2 rules"),
+        "{ready}"
+    );
     err.wait_for(RELOADED, 10 * SECOND);
+    // A broken file: the status says the running configuration is kept.
+    std::fs::write(s.dir.join("mavtables.conf"), "udp { port x; }\n").expect("write");
+    signal(&mut guard, libc::SIGHUP);
+    expect_notification(&systemd, "RELOADING=1", &mut seen);
+    let ready = expect_notification(&systemd, "READY=1", &mut seen);
+    assert!(
+        ready.contains("STATUS=routing as before: the configuration file has errors"),
+        "{ready}"
+    );
 
     signal(&mut guard, libc::SIGTERM);
     expect_notification(&systemd, "STOPPING=1", &mut seen);

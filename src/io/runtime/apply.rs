@@ -63,19 +63,26 @@ impl Runtime {
         }
         // The loop is sound here; what follows may wait on disks for a few seconds.
         self.feed_watchdog_now(now);
-        match &self.source {
-            None => log::warn(
-                &"SIGHUP: the configuration came from command-line endpoints; there is no file to read again",
-            ),
+        let status = match &self.source {
+            None => {
+                log::warn(
+                    &"SIGHUP: the configuration came from command-line endpoints; there is no file to read again",
+                );
+                "routing (the configuration has no file to read again)".to_string()
+            }
             Some(path) => match config::read_file(path) {
-                Ok(file) => self.apply(file, now),
-                Err(why) => log::stderr_text(&format!(
-                    "error: configuration not reloaded, the running one is kept:\n{why}"
-                )),
+                Ok(file) => format!("routing; configuration reloaded: {}", self.apply(file, now)),
+                Err(why) => {
+                    log::stderr_text(&format!(
+                        "error: configuration not reloaded, the running one is kept:\n{why}"
+                    ));
+                    "routing as before: the configuration file has errors, not reloaded (see the log)"
+                        .to_string()
+                }
             },
-        }
+        };
         if let Some(notifier) = &self.notifier {
-            notifier.ready();
+            notifier.ready_with(&status);
         }
     }
 
@@ -118,7 +125,7 @@ impl Runtime {
 
     /// Runs `file` from now on: the core keeps what did not change and names what the
     /// loop closes and opens.
-    fn apply(&mut self, file: FromFile, now: Timestamp) {
+    fn apply(&mut self, file: FromFile, now: Timestamp) -> String {
         for w in &file.warnings {
             log::warn(w);
         }
@@ -218,6 +225,8 @@ impl Runtime {
             }
         }
         self.handle_notices(now);
-        log::stderr_text(&format!("configuration reloaded: {done}\n"));
+        let summary = done.to_string();
+        log::stderr_text(&format!("configuration reloaded: {summary}\n"));
+        summary
     }
 }
