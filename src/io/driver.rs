@@ -7,6 +7,10 @@ use std::os::fd::RawFd;
 
 use crate::routing::{Engine, InterfaceId, Timestamp};
 
+/// A [`Driver::deadline`] with nothing due: it keeps the driver looked at once a second,
+/// for a driver whose deadlines come and go (a listener's retry, a client's attempt).
+pub(super) const NOTHING_DUE: Timestamp = Timestamp::from_nanos(u64::MAX);
+
 /// How a call into a driver ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Progress {

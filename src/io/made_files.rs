@@ -182,12 +182,18 @@ pub(super) fn local_now() -> LocalTime {
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_later_file_under_one_name_takes_a_higher_suffix_even_where_an_older_name_is_free() {
-        let dir = std::env::temp_dir().join(format!("mavtables-made-{}", std::process::id()));
+    /// An empty scratch directory named after `tag`, and a pattern of names in it.
+    fn scratch(tag: &str) -> (PathBuf, FilePattern) {
+        let dir = std::env::temp_dir().join(format!("mavtables-made-{tag}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         let pattern =
             FilePattern::parse(&format!("{}/r_%H-%M-%S.tlog", dir.display())).expect("pattern");
+        (dir, pattern)
+    }
+
+    #[test]
+    fn a_later_file_under_one_name_takes_a_higher_suffix_even_where_an_older_name_is_free() {
+        let (dir, pattern) = scratch("suffix");
         let time = local_now();
         let mut suffixes = Suffixes::default();
         let make = |suffixes: &mut Suffixes| {
@@ -212,10 +218,7 @@ mod tests {
 
     #[test]
     fn a_listed_file_replaced_since_is_left_alone_and_only_taken_off_the_list() {
-        let dir = std::env::temp_dir().join(format!("mavtables-made-rm-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        let pattern =
-            FilePattern::parse(&format!("{}/r_%H-%M-%S.tlog", dir.display())).expect("pattern");
+        let (dir, pattern) = scratch("rm");
         let mut made = MadeList::open(&pattern, "recording", "recordings");
         let mut suffixes = Suffixes::default();
         let mut make = || {

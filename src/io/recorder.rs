@@ -289,20 +289,7 @@ impl Writer {
         // of the file for its readers.
         let reached = file.metadata().map_or(0, |m| m.len()).max(self.size);
         let cut = file.set_len(self.size);
-        if let Err(cut) = cut {
-            // A torn record stays at the end: nothing more may follow it in this file.
-            let path = self.path_text();
-            self.trouble(
-                Trouble::Disk,
-                &format_args!(
-                    "cannot write {path} ({e}), nor cut it back to its last whole record ({cut}), so the next records start a new file"
-                ),
-            );
-            add(&counters.dropped_disk, count);
-            self.close();
-            return;
-        }
-        if e.kind() == io::ErrorKind::FileTooLarge && reached < self.max_file_bytes {
+        if cut.is_ok() && e.kind() == io::ErrorKind::FileTooLarge && reached < self.max_file_bytes {
             // No file may grow beyond `reached` here (a file-size limit, FAT's 4 GiB):
             // files are rotated at that size from now on, and these records go on in a
             // new one. Each time the limit only shrinks, so this ends.
@@ -316,15 +303,25 @@ impl Writer {
             return;
         }
         let path = self.path_text();
-        self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}"));
+        match &cut {
+            Err(cut) => self.trouble(
+                Trouble::Disk,
+                &format_args!(
+                    "cannot write {path} ({e}), nor cut it back to its last whole record ({cut}), so the next records start a new file"
+                ),
+            ),
+            Ok(()) => self.trouble(Trouble::Disk, &format_args!("cannot write {path}: {e}")),
+        }
         add(&counters.dropped_disk, count);
         // A full disk may get room again, and this file goes on then. Any other failure
         // (a card that dropped out and came back, an I/O error) may stay with this
-        // handle for good: the next records start a new file.
-        if !matches!(
+        // handle for good, and a torn record left at the end (the cut back failed) must
+        // have nothing after it: the next records start a new file.
+        let full = matches!(
             e.kind(),
             io::ErrorKind::StorageFull | io::ErrorKind::QuotaExceeded
-        ) {
+        );
+        if cut.is_err() || !full {
             self.close();
         }
     }

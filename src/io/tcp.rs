@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use mio::Waker;
 
-use super::driver::{Driver, Progress};
+use super::driver::{Driver, NOTHING_DUE, Progress};
 use super::resolve::Lookup;
 use super::stream::StreamIo;
 use super::sys;
@@ -202,9 +202,7 @@ impl Driver for TcpListenerDriver {
     }
 
     fn deadline(&self) -> Option<Timestamp> {
-        // Always one, so that the loop keeps looking (once a second); far off when
-        // accepting works.
-        Some(self.retry_at.unwrap_or(Timestamp::from_nanos(u64::MAX)))
+        Some(self.retry_at.unwrap_or(NOTHING_DUE))
     }
 
     fn expire(&mut self, _engine: &mut Engine, _now: Timestamp) -> Progress {
@@ -396,11 +394,10 @@ impl Driver for TcpStreamDriver {
     }
 
     fn deadline(&self) -> Option<Timestamp> {
-        // A client always has one, so that the loop keeps looking (once a second).
         self.client.as_ref()?;
         Some(match self.connect_by {
             Some(by) if self.connecting => by,
-            _ => Timestamp::from_nanos(u64::MAX),
+            _ => NOTHING_DUE,
         })
     }
 

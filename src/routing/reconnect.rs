@@ -69,10 +69,7 @@ impl Connection {
     /// It opened at `now`, its interface having received `frames` so far: the backoff of
     /// the attempts before is kept for a loss that comes soon (see [`STABLE`]).
     pub(crate) fn opened(&mut self, now: Timestamp, frames: u64) {
-        let backoff = match *self {
-            Connection::Closed { backoff, .. } => backoff,
-            Connection::Open { backoff, .. } => backoff,
-        };
+        let (Connection::Closed { backoff, .. } | Connection::Open { backoff, .. }) = *self;
         *self = Connection::Open {
             since: now,
             backoff,
