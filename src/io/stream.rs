@@ -10,6 +10,7 @@
 //! [`StreamIo::flush`] if no read came in between.
 
 use std::collections::VecDeque;
+use std::fmt::Display;
 use std::io::{self, Read, Write};
 
 use super::driver::Progress;
@@ -67,31 +68,43 @@ impl StreamIo {
         for _ in 0..READS_PER_TURN {
             match stream.read(&mut self.buffer) {
                 Ok(0) => {
-                    match self.failed.take() {
-                        Some(e) => engine.stream_lost(id, now, &e),
-                        None => engine.stream_lost(id, now, &"end of stream"),
-                    }
-                    return Progress::Lost;
+                    return match self.failed.take() {
+                        Some(e) => self.lose(engine, id, now, &e),
+                        None => self.lose(engine, id, now, &"end of stream"),
+                    };
                 }
                 Ok(n) => engine.handle_stream(id, &self.buffer[..n], now),
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
                     return match self.failed.take() {
-                        Some(e) => {
-                            engine.stream_lost(id, now, &e);
-                            Progress::Lost
-                        }
+                        Some(e) => self.lose(engine, id, now, &e),
                         None => Progress::Done,
                     };
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => {
                     let why = self.failed.take().unwrap_or(e);
-                    engine.stream_lost(id, now, &why);
-                    return Progress::Lost;
+                    return self.lose(engine, id, now, &why);
                 }
             }
         }
         Progress::More
+    }
+
+    /// Reports the stream's loss to the core, after counting the frame it cut (partly
+    /// written) as dropped: that is counted while its link is still there, since the
+    /// loss of an accepted connection removes the link.
+    fn lose(
+        &mut self,
+        engine: &mut Engine,
+        id: InterfaceId,
+        now: Timestamp,
+        why: &dyn Display,
+    ) -> Progress {
+        if let Some((t, _)) = self.partial.take() {
+            engine.on_stream_frame_lost(&t);
+        }
+        engine.stream_lost(id, now, why);
+        Progress::Lost
     }
 
     /// Writes what the core has for interface `id`, highest priority first, as far as
@@ -107,8 +120,7 @@ impl StreamIo {
         now: Timestamp,
     ) -> Progress {
         if let Some(e) = self.failed.take() {
-            engine.stream_lost(id, now, &e);
-            return Progress::Lost;
+            return self.lose(engine, id, now, &e);
         }
         loop {
             let (t, done) = match self.partial.take() {
@@ -134,11 +146,127 @@ impl StreamIo {
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => self.partial = Some((t, done)),
                 Err(e) => {
-                    engine.on_send_failed(id, &t, &e);
+                    engine.on_stream_frame_lost(&t);
                     self.failed = Some(e);
                     return Progress::Blocked;
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::net::SocketAddr;
+
+    use super::*;
+    use crate::config::load;
+    use crate::routing::RouterOptions;
+    use crate::wire::encode::{Header, encode_v2};
+
+    const T0: Timestamp = Timestamp::ZERO;
+
+    /// A peer that takes `room` bytes, then answers every write with `then`.
+    struct Peer {
+        room: usize,
+        then: io::ErrorKind,
+    }
+
+    impl Write for Peer {
+        fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+            match self.room.min(bytes.len()) {
+                0 => Err(self.then.into()),
+                n => {
+                    self.room -= n;
+                    Ok(n)
+                }
+            }
+        }
+
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// A peer that has closed: nothing is left to read.
+    struct Ended;
+
+    impl Read for Ended {
+        fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+            Ok(0)
+        }
+    }
+
+    /// A core with a UDP interface and a TCP client, opened, with two broadcasts from
+    /// the UDP side queued for the client.
+    fn queued_for_client() -> (Engine, InterfaceId) {
+        let config = load("chain default { accept; }\n").expect("config").config;
+        let mut e = Engine::new(&config, RouterOptions::default());
+        let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+        let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, T0);
+        e.handle_timeout(T0);
+        e.stream_opened(client, T0);
+        let from = SocketAddr::from(([127, 0, 0, 1], 1));
+        for seq in 0..2 {
+            let header = Header {
+                seq,
+                system: 7,
+                component: 1,
+            };
+            let mut frame = Vec::new();
+            encode_v2(header, 30, &[7; 28], None, &mut frame).expect("encode");
+            e.handle_datagram(udp, from, &frame, T0);
+        }
+        (e, client)
+    }
+
+    /// The report's line of `label`.
+    fn line(e: &Engine, label: &str) -> String {
+        let report = e.report();
+        let found = report.lines().find(|l| l.trim_start().starts_with(label));
+        found
+            .unwrap_or_else(|| panic!("no {label} in {report}"))
+            .to_string()
+    }
+
+    #[test]
+    fn a_failed_write_is_one_io_error_and_one_dropped_frame() {
+        let (mut e, client) = queued_for_client();
+        let mut io = StreamIo::default();
+        let mut peer = Peer {
+            room: 0,
+            then: io::ErrorKind::BrokenPipe,
+        };
+        assert_eq!(io.flush(&mut peer, &mut e, client, T0), Progress::Blocked);
+        assert_eq!(io.receive(&mut Ended, &mut e, client, T0), Progress::Lost);
+        assert!(
+            line(&e, "tcp connect x").contains(" 1 I/O errors"),
+            "{}",
+            e.report()
+        );
+        assert!(
+            line(&e, "tcp:x").contains("+ 1 (send errors)"),
+            "{}",
+            e.report()
+        );
+    }
+
+    #[test]
+    fn a_frame_cut_by_the_streams_end_is_counted_as_dropped() {
+        let (mut e, client) = queued_for_client();
+        let mut io = StreamIo::default();
+        let mut peer = Peer {
+            room: 5,
+            then: io::ErrorKind::WouldBlock,
+        };
+        assert_eq!(io.flush(&mut peer, &mut e, client, T0), Progress::Blocked);
+        assert!(!io.idle());
+        assert_eq!(io.receive(&mut Ended, &mut e, client, T0), Progress::Lost);
+        assert!(io.idle());
+        let link = line(&e, "tcp:x");
+        assert!(
+            link.contains("out 0 frames") && link.contains("+ 1 (send errors)"),
+            "{link}"
+        );
     }
 }

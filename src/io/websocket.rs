@@ -381,7 +381,7 @@ impl WebSocketDriver {
     fn report(&mut self, engine: &mut Engine, now: Timestamp, error: Option<String>) {
         match error {
             Some(why) => {
-                engine.on_receive_failed(self.interface, &io::Error::other(why.clone()));
+                engine.on_stream_failed(self.interface, &why);
                 engine.stream_lost(self.interface, now, &why);
             }
             None => engine.stream_lost(self.interface, now, &"closed"),
@@ -512,10 +512,13 @@ impl Driver for WebSocketDriver {
                         engine.on_sent(&t);
                     }
                     Err(e) => {
-                        let e = io::Error::other(e.to_string());
-                        engine.on_send_failed(id, &t, &e);
-                        self.next.clear();
-                        self.failed = Some(e);
+                        // This frame and the ones taken with it go with the
+                        // connection; its loss is counted once, when reported.
+                        engine.on_stream_frame_lost(&t);
+                        for t in self.next.drain(..) {
+                            engine.on_stream_frame_lost(&t);
+                        }
+                        self.failed = Some(io::Error::other(e.to_string()));
                         return Progress::Blocked;
                     }
                 }

@@ -22,7 +22,7 @@ use std::collections::{HashMap, VecDeque};
 use std::io;
 use std::os::fd::RawFd;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError, TrySendError};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -47,6 +47,9 @@ const OUTBOX: usize = 4096;
 const SAMPLES_PER_TURN: usize = 256;
 /// Frames taken from the core per call.
 const SEND_BATCH: usize = 64;
+/// How long stopping a session (a reload that removes or changes the interface, the
+/// exit) may hold the loop.
+const CLOSE_LIMIT: Duration = Duration::from_secs(2);
 
 /// What the loop asks of the session's thread.
 enum Command {
@@ -88,7 +91,7 @@ pub struct ZenohDriver {
     inbox: Option<Receiver<Vec<u8>>>,
     /// Commands to the session, while it runs (dropping it ends the session).
     outbox: Option<SyncSender<Command>>,
-    worker: Option<JoinHandle<()>>,
+    worker: Option<Worker>,
     /// Scratch for the core's output.
     in_flight: VecDeque<Transmit>,
     /// The systems last asked for (an edge).
@@ -196,8 +199,47 @@ impl ZenohDriver {
         self.subscribed = None;
         self.checked = None;
         self.opening = false;
-        if let Some(worker) = self.worker.take() {
-            let _ = worker.join();
+        if let Some(worker) = self.worker.take()
+            && !worker.join_within(CLOSE_LIMIT)
+        {
+            log::warn(&format_args!(
+                "{}: the Zenoh session did not close within {CLOSE_LIMIT:?}; it is left to close on its own",
+                self.label
+            ));
+        }
+    }
+}
+
+/// The session's thread, and the channel that says when it has ended.
+struct Worker {
+    thread: JoinHandle<()>,
+    /// Disconnected when the thread ends (its sender goes with the thread's closure).
+    ended: Receiver<()>,
+}
+
+impl Worker {
+    /// Runs `session` on a thread named `zenoh`.
+    fn spawn(session: impl FnOnce() + Send + 'static) -> io::Result<Worker> {
+        let (ends, ended) = mpsc::channel::<()>();
+        let thread = std::thread::Builder::new()
+            .name("zenoh".into())
+            .spawn(move || {
+                let _ends = ends;
+                session();
+            })?;
+        Ok(Worker { thread, ended })
+    }
+
+    /// Waits at most `limit` for the thread to end and joins it; whether it ended. A
+    /// thread still running is left to end on its own (a peer that does not answer
+    /// cannot hold the loop, and with it every other link).
+    fn join_within(self, limit: Duration) -> bool {
+        match self.ended.recv_timeout(limit) {
+            Err(RecvTimeoutError::Timeout) => false,
+            Ok(()) | Err(RecvTimeoutError::Disconnected) => {
+                let _ = self.thread.join();
+                true
+            }
         }
     }
 }
@@ -238,9 +280,8 @@ impl Driver for ZenohDriver {
         let (outbox, commands) = mpsc::sync_channel(OUTBOX);
         let shared = self.shared.clone();
         let config = self.config.clone();
-        let worker = std::thread::Builder::new()
-            .name("zenoh".into())
-            .spawn(move || run_session(zconfig, &config, &commands, &to_loop, &shared))?;
+        let worker =
+            Worker::spawn(move || run_session(zconfig, &config, &commands, &to_loop, &shared))?;
         self.worker = Some(worker);
         self.inbox = Some(inbox);
         self.outbox = Some(outbox);
@@ -549,6 +590,19 @@ mod tests {
             without_locations("no file /etc/x here at /a/b.rs:1."),
             "no file /etc/x here"
         );
+    }
+
+    #[test]
+    fn a_session_thread_that_does_not_end_is_left_after_the_limit() {
+        let (release, held) = mpsc::channel::<()>();
+        let stuck = Worker::spawn(move || {
+            let _ = held.recv();
+        })
+        .expect("thread");
+        assert!(!stuck.join_within(Duration::from_millis(50)));
+        release.send(()).expect("the thread is still there");
+        let quick = Worker::spawn(|| {}).expect("thread");
+        assert!(quick.join_within(Duration::from_secs(10)));
     }
 
     #[test]

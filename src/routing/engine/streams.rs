@@ -14,6 +14,18 @@ impl Engine {
         }
     }
 
+    /// Notes that stream `id` failed (`why` says how: a failed send, a refused
+    /// handshake): said and counted as one I/O error. Its loss follows, through
+    /// [`Engine::stream_lost`].
+    pub fn on_stream_failed(&mut self, id: InterfaceId, why: &dyn Display) {
+        if let Some(interface) = self.interfaces.get_mut(id.0) {
+            interface.io_errors += 1;
+            self.core
+                .notices
+                .push_back(Notice::Error(format!("{}: {why}", interface.described)));
+        }
+    }
+
     /// Interface `id` (a stream or a datagram client) was opened at `now`. What was
     /// queued for a client that stayed down too long is dropped now (stale telemetry is
     /// not replayed).

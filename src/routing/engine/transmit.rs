@@ -183,6 +183,15 @@ impl Engine {
         }
     }
 
+    /// Notes that `t` went with its stream: written in part or not at all when the
+    /// stream failed. It is counted as a send error of its link; the stream's loss
+    /// itself is said and counted once, by [`Engine::stream_lost`].
+    pub fn on_stream_frame_lost(&mut self, t: &Transmit) {
+        if let Some(c) = self.core.router.counters_mut(t.link) {
+            c.send_errors += 1;
+        }
+    }
+
     /// Notes that `t` could not be sent on interface `id` (it is dropped). A datagram
     /// peer's first failure is reported; later ones are only counted, so a dead route
     /// cannot flood the log.
