@@ -52,6 +52,9 @@ impl Edge {
 /// Keys, stream table and clock shared by every interface of the router.
 #[derive(Debug, Default)]
 pub struct Signing {
+    /// Every key configured since the start, by slot. A key a reload takes out stays, so
+    /// that its streams stay too and a reload that puts it back finds them; the list is
+    /// as long as the distinct keys of the process's life, 32 bytes each.
     keys: Vec<SigningKey>,
     streams: StreamTable,
     clock: SigningClock,
@@ -116,7 +119,9 @@ impl Signing {
 
     /// Takes over a saved state: the clock floor, and the streams of keys still in use
     /// (raised by [`UNCLEAN_MARGIN`] if the file was not written at a clean exit).
-    /// Returns how many streams were taken.
+    /// A stream the table already knows keeps what it knows: the file was written from
+    /// it (a key a reload took out and put back), so the table's timestamp is the
+    /// newer, and exact. Returns how many streams were taken.
     pub(crate) fn restore(&mut self, state: &SavedState) -> usize {
         self.clock.raise_floor(state.clock);
         let margin = if state.clean { 0 } else { UNCLEAN_MARGIN };
@@ -132,6 +137,9 @@ impl Signing {
                 system: s.system,
                 component: s.component,
             };
+            if self.streams.last(&id).is_some() {
+                continue;
+            }
             self.streams.record(id, s.timestamp.saturating_add(margin));
             n += 1;
         }
@@ -165,5 +173,42 @@ impl Signing {
             clock: self.clock.floor(),
             streams,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_key_put_back_keeps_the_exact_timestamps_the_table_knows() {
+        let mut signing = Signing::default();
+        let key = SigningKey::from_bytes([5; 32]);
+        let slot = signing.add_key(key.clone());
+        let known = StreamId {
+            key: slot,
+            link_id: 1,
+            system: 7,
+            component: 1,
+        };
+        let evicted = StreamId { system: 8, ..known };
+        signing.streams.record(known, 1_000);
+        // Saved while running (unclean): taken back, only the stream the table forgot
+        // is raised by the margin.
+        let saved = |id: StreamId, timestamp| SavedStream {
+            key: key.fingerprint(),
+            link_id: id.link_id,
+            system: id.system,
+            component: id.component,
+            timestamp,
+        };
+        let state = SavedState {
+            clean: false,
+            clock: 0,
+            streams: vec![saved(known, 900), saved(evicted, 900)],
+        };
+        assert_eq!(signing.restore(&state), 1);
+        assert_eq!(signing.streams.last(&known), Some(1_000));
+        assert_eq!(signing.streams.last(&evicted), Some(900 + UNCLEAN_MARGIN));
     }
 }

@@ -76,7 +76,8 @@ pub struct Reconfigured {
     /// Interfaces to be opened whose driver could not be made (see
     /// [`Reconfigured::open_failed`]).
     pub not_opened: usize,
-    /// Other settings that changed: `queue`, `dedup`, `group`, `heartbeat` (by name).
+    /// Other settings that changed, by name: `queue`, `dedup`, `group`, `heartbeat`,
+    /// `stats`, `record`, `flight_log`, `signing_state`.
     pub settings_changed: Vec<&'static str>,
     /// The interfaces to be opened: each with its label, its detail line (index into
     /// `details`) and whether it is new (else reopened).
@@ -224,6 +225,14 @@ impl Engine {
                 ("dedup", self.config.dedup != config.dedup),
                 ("group", self.config.groups != config.groups),
                 ("heartbeat", self.config.heartbeat != config.heartbeat),
+                ("stats", self.config.stats != config.stats),
+                ("record", self.config.record != config.record),
+                ("flight_log", self.config.flight_log != config.flight_log),
+                (
+                    "signing_state",
+                    self.config.signing_state_path(|_| None)
+                        != config.signing_state_path(|_| None),
+                ),
             ]
             .into_iter()
             .filter_map(|(name, changed)| changed.then_some(name))
@@ -777,6 +786,30 @@ mod tests {
         assert_eq!(carried.rules[1], counts.rules[1]);
         assert_eq!(carried.rules[0].packets, 0);
         assert!(counts.rules[1].packets > 0);
+    }
+
+    #[test]
+    fn the_summary_names_each_top_level_block_that_changed() {
+        let old = load("udp { port 14550; }\n").expect("config").config;
+        let mut e = Engine::new(&old, RouterOptions::default());
+        e.configure(&old, &[], T0);
+        let new = load(
+            "udp { port 14550; }\n\
+             stats { port 9100; }\n\
+             record { path /tmp/x.tlog; }\n\
+             flight_log { system 1; path /tmp/y; }\n",
+        )
+        .expect("config")
+        .config;
+        assert_eq!(
+            e.configure(&new, &[], T0).to_string(),
+            "0 rules (0 changed), +0 interfaces, -0, 0 changed, stats changed, record changed, \
+             flight_log changed"
+        );
+        assert_eq!(
+            e.configure(&new, &[], T0).to_string(),
+            "0 rules (0 changed), +0 interfaces, -0, 0 changed"
+        );
     }
 
     #[test]
