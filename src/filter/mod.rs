@@ -228,6 +228,12 @@ impl Filter {
         self.intervals.get(cap.rank as usize).copied().unwrap_or(0)
     }
 
+    /// Whether `other` caps at the same set of rates (a stream's schedule means the
+    /// same under both).
+    pub fn same_rates(&self, other: &Filter) -> bool {
+        self.intervals == other.intervals
+    }
+
     /// Whether any rule has a `with rate`.
     pub fn has_caps(&self) -> bool {
         !self.ranks.is_empty()

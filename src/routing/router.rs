@@ -188,12 +188,16 @@ impl Router {
 
     /// Replaces the filter with `config`'s chains and default action (a reload): the
     /// verdict memo starts empty, and the per-rule counts start from `counts` (by the
-    /// new filter's flat rule numbers: what the same rules counted before).
+    /// new filter's flat rule numbers: what the same rules counted before). The `with
+    /// rate` schedules carry over if the new filter caps at the same rates; otherwise
+    /// every stream starts afresh.
     pub fn replace_filter(&mut self, config: &Config, counts: &FilterCounts) {
         let mut filter = Filter::with_cache_slots(config, self.options.cache_slots);
         filter.carry_counts(counts);
+        if !filter.same_rates(&self.filter) {
+            self.limiter.clear();
+        }
         self.filter = filter;
-        self.limiter.clear();
     }
 
     /// Sets the queue bounds (a reload's `queue` block): every link's queue, and the

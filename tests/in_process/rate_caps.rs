@@ -202,16 +202,27 @@ fn streams_are_per_destination_link_source_and_message() {
 }
 
 #[test]
-fn a_reload_with_changed_rules_starts_the_schedules_afresh() {
+fn a_reload_keeps_the_schedules_unless_the_rates_changed() {
     let mut net = net_with(SATCOM, RouterOptions::default());
     net.now = Timestamp::from_secs(10);
     net.send("v1", "ATTITUDE", "1.1", None);
     net.send("v1", "ATTITUDE", "1.1", None);
     assert_eq!(pop_all(&mut net, "sat").len(), 1);
-    let config = mavtables::config::load(SATCOM).expect("loads").config;
-    let counts = net.router.filter_counts();
-    net.router.replace_filter(&config, &counts);
+    let reload = |net: &mut Net, conf: &str| {
+        let config = mavtables::config::load(conf).expect("loads").config;
+        let counts = net.router.filter_counts();
+        net.router.replace_filter(&config, &counts);
+    };
+    // Another rule, the same rate: the stream still waits out its half second.
+    let more = SATCOM.replace("    accept;", "    reject if PING;\n    accept;");
+    reload(&mut net, &more);
+    net.send("v1", "ATTITUDE", "1.1", None);
+    assert_eq!(pop_all(&mut net, "sat").len(), 0);
+    assert_eq!(net.router.filter_counts().rules[0].rate_limited, 2);
+    // A new rate: every stream starts afresh.
+    reload(&mut net, &more.replace("2/s", "4/s"));
     net.send("v1", "ATTITUDE", "1.1", None);
     assert_eq!(pop_all(&mut net, "sat").len(), 1);
-    assert_eq!(net.router.filter_counts().rules[0].rate_limited, 1);
+    // (The counts were handed over as they were: none was added.)
+    assert_eq!(net.router.filter_counts().rules[0].rate_limited, 2);
 }

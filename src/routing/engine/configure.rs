@@ -230,8 +230,7 @@ impl Engine {
                 ("flight_log", self.config.flight_log != config.flight_log),
                 (
                     "signing_state",
-                    self.config.signing_state_path(|_| None)
-                        != config.signing_state_path(|_| None),
+                    self.config.signing_state_path(|_| None) != config.signing_state_path(|_| None),
                 ),
             ]
             .into_iter()
