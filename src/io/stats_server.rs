@@ -171,8 +171,10 @@ fn serve(mut stream: TcpStream, latest: &Latest, loopback: bool) {
             return;
         }
         match stream.write(rest) {
-            Ok(0) | Err(_) => return,
+            Ok(0) => return,
             Ok(n) => rest = &rest[n..],
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return,
         }
     }
     let _ = stream.flush();
@@ -194,21 +196,33 @@ fn linger(stream: &mut TcpStream, deadline: Instant) {
             return;
         }
         match stream.read(&mut scratch) {
-            Ok(0) | Err(_) => return,
+            Ok(0) => return,
             Ok(_) => {}
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return,
         }
     }
 }
 
-/// Whether `head` holds a whole request head: up to a blank line, its lines ended by
-/// CRLF or by a bare LF (which RFC 9112 lets a server accept).
-fn head_complete(head: &[u8]) -> bool {
-    head.windows(4).any(|w| w == b"\r\n\r\n") || head.windows(2).any(|w| w == b"\n\n")
+/// Where the request head in `bytes` ends (just after its blank line), if it is whole:
+/// its lines ended by CRLF or by a bare LF (which RFC 9112 lets a server accept).
+fn head_end(bytes: &[u8]) -> Option<usize> {
+    let crlf = bytes
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map(|i| i + 4);
+    let lf = bytes.windows(2).position(|w| w == b"\n\n").map(|i| i + 2);
+    match (crlf, lf) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
 }
 
 /// The request head (up to the blank line, or whatever arrived by the deadline or before
-/// the client stopped sending, or [`MAX_HEAD`] bytes); `None` if nothing arrived. An
-/// incomplete head is answered as a bad request.
+/// the client stopped sending, or [`MAX_HEAD`] bytes and one more when no blank line
+/// came within them); `None` if nothing arrived. What came after the blank line (a
+/// pipelined request) is not part of it. An incomplete head is answered as a bad
+/// request.
 fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
     let deadline = Instant::now() + DEADLINE;
     let mut head = Vec::with_capacity(1024);
@@ -219,12 +233,21 @@ fn read_head(stream: &mut TcpStream) -> Option<Vec<u8>> {
             break;
         }
         let n = match stream.read(&mut chunk) {
-            Ok(0) | Err(_) => break,
+            Ok(0) => break,
             Ok(n) => n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(_) => break,
         };
+        // Only the bytes that may still end a head are kept: three of the last chunk
+        // (a blank line split between chunks), and up to one past the limit.
+        let from = head.len().saturating_sub(3);
         let room = MAX_HEAD + 1 - head.len().min(MAX_HEAD + 1);
         head.extend_from_slice(&chunk[..n.min(room)]);
-        if head.len() > MAX_HEAD || head_complete(&head) {
+        if let Some(end) = head_end(&head[from..]) {
+            head.truncate(from + end);
+            return Some(head);
+        }
+        if head.len() > MAX_HEAD {
             return Some(head);
         }
     }
@@ -386,6 +409,39 @@ mod tests {
             .next()
             .unwrap_or("")
             .to_string()
+    }
+
+    /// What `read_head` makes of `bytes`, sent at once by a client that then waits.
+    fn head_read_from(bytes: &[u8]) -> Option<Vec<u8>> {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let mut client = TcpStream::connect(listener.local_addr().expect("addr")).expect("connect");
+        client.write_all(bytes).expect("write");
+        let (mut served, _) = listener.accept().expect("accept");
+        read_head(&mut served)
+    }
+
+    #[test]
+    fn a_head_near_the_limit_is_read_apart_from_the_request_behind_it() {
+        let first = format!(
+            "GET /metrics HTTP/1.1\r\nHost: localhost\r\nX-Pad: {}\r\n\r\n",
+            "p".repeat(MAX_HEAD - 100)
+        );
+        let both = [
+            first.as_bytes(),
+            b"GET / HTTP/1.1\r\n\r\n".repeat(60).as_slice(),
+        ]
+        .concat();
+        let head = head_read_from(&both).expect("a head");
+        assert_eq!(head, first.as_bytes());
+        assert_eq!(status(&head), "HTTP/1.1 200 OK");
+        // A head with no end within the limit is still refused.
+        let long = format!("GET / HTTP/1.1\r\nX-Pad: {}\r\n\r\n", "p".repeat(MAX_HEAD));
+        let head = head_read_from(long.as_bytes()).expect("bytes");
+        assert_eq!(head.len(), MAX_HEAD + 1);
+        assert_eq!(
+            status(&head),
+            "HTTP/1.1 431 Request Header Fields Too Large"
+        );
     }
 
     #[test]
