@@ -169,7 +169,7 @@ impl Runtime {
     /// Writes the signing state a last time, marked as written at a clean exit.
     fn save_signing_state_at_exit(&mut self) {
         if let Some(file) = self.state_file.take() {
-            let last = self.engine.signing_state(true);
+            let last = self.engine.signing_state(true, self.now());
             file.finish(last.as_ref());
         }
     }

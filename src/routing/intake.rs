@@ -145,13 +145,26 @@ impl Intake<'_> {
 impl ParseEvents for Intake<'_> {
     #[inline]
     fn frame(&mut self, frame: Frame<'_>) {
-        // Copies are dropped before the signing check: the same signed frame over a
+        // Copies are dropped before the replay check: the same signed frame over a
         // second radio is a copy, not a replay. Only frames taken in are remembered, so
-        // a refused frame cannot hold back a genuine one.
+        // a refused frame cannot hold back a genuine one. At an interface with a key a
+        // copy must still pass the signature check, and a signed copy from a remote
+        // that has no link yet is a replay: a copy must not make anyone a link.
         let hash = self.router.dedup().hash(frame.as_bytes());
         if let Some(h) = hash
             && self.router.dedup_mut().is_duplicate(h, self.now)
         {
+            if let Some(edge) = self.edge.as_deref() {
+                let refused = match self.signing.authenticate(edge, &frame) {
+                    Err(why) => Some(why),
+                    Ok(true) if self.existing_link().is_none() => Some(Refusal::Replayed),
+                    Ok(_) => None,
+                };
+                if let Some(why) = refused {
+                    self.refuse(&frame, why);
+                    return;
+                }
+            }
             let id = self.link();
             self.router.take_duplicate(id, &frame, self.now, self.out);
             return;

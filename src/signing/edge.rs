@@ -10,6 +10,7 @@ use super::state::{SavedState, SavedStream, UNCLEAN_MARGIN};
 use super::streams::{StreamId, StreamTable};
 use super::verify::{Admission, Check, Refusal};
 use crate::time::Timestamp;
+use crate::wire::header::V2;
 use crate::wire::signing::SigningTime;
 use crate::wire::{Frame, Packet};
 
@@ -105,8 +106,26 @@ impl Signing {
         admission
     }
 
+    /// Whether `frame`, arrived on an interface with `edge`, passes as far as its
+    /// signature goes (its stream not looked at): `Ok(true)` signed with the key,
+    /// `Ok(false)` unsigned where unsigned frames are taken.
+    pub fn authenticate(&self, edge: &Edge, frame: &Frame<'_>) -> Result<bool, Refusal> {
+        let Some(key) = self.keys.get(edge.key_slot) else {
+            return Err(Refusal::BadSignature);
+        };
+        let check = Check {
+            key,
+            key_slot: edge.key_slot,
+            allow_unsigned: edge.allow_unsigned,
+            clock: 0,
+        };
+        check.authenticate(frame)
+    }
+
     /// `frame` signed for sending at `now` out of an interface with `edge`, or `None` if
-    /// it goes as it is (already signed, MAVLink 1).
+    /// it goes as it is (already signed, MAVLink 1). The signature's stream is recorded
+    /// as if the frame had come in: a copy sent back to the router, on any interface
+    /// with the key, is a replay.
     pub fn sign(&mut self, edge: &Edge, frame: &[u8], now: Timestamp) -> Option<Packet> {
         if !wants_signature(frame) {
             return None;
@@ -114,7 +133,15 @@ impl Signing {
         let key = self.keys.get(edge.key_slot)?;
         let timestamp = self.clock.issue(now);
         self.changed = true;
-        sign(frame, key, edge.link_id, timestamp)
+        let signed = sign(frame, key, edge.link_id, timestamp)?;
+        let stream = StreamId {
+            key: edge.key_slot,
+            link_id: edge.link_id,
+            system: V2.read_system(frame),
+            component: V2.read_component(frame),
+        };
+        self.streams.record(stream, timestamp);
+        Some(signed)
     }
 
     /// Takes over a saved state: the clock floor, and the streams of keys still in use
@@ -122,9 +149,23 @@ impl Signing {
     /// A stream the table already knows keeps what it knows: the file was written from
     /// it (a key a reload took out and put back), so the table's timestamp is the
     /// newer, and exact. Returns how many streams were taken.
-    pub(crate) fn restore(&mut self, state: &SavedState) -> usize {
-        self.clock.raise_floor(state.clock);
+    ///
+    /// `at_start`: the state of an earlier run, restored before any frame. If that run
+    /// did not end cleanly, what it did after its last save is not in the file: the
+    /// clock, and what a stream the table does not know must begin above, are raised
+    /// to the time of that save plus the margin, so that neither the router's own
+    /// signatures nor a stream first heard after the save can be replayed.
+    pub(crate) fn restore(&mut self, state: &SavedState, at_start: bool) -> usize {
         let margin = if state.clean { 0 } else { UNCLEAN_MARGIN };
+        if at_start {
+            let after = state.clock.saturating_add(margin);
+            self.clock.raise_floor(after);
+            if !state.clean {
+                for slot in 0..self.keys.len() {
+                    self.streams.raise_floor(slot, after);
+                }
+            }
+        }
         let prints: Vec<[u8; 8]> = self.keys.iter().map(SigningKey::fingerprint).collect();
         let mut n = 0;
         for s in &state.streams {
@@ -146,9 +187,10 @@ impl Signing {
         n
     }
 
-    /// The state to save, if it changed since the last call (or always when `clean`:
-    /// the router is stopping and nothing is accepted after it).
-    pub(crate) fn take_state(&mut self, clean: bool) -> Option<SavedState> {
+    /// The state to save at `now`, if it changed since the last call (or always when
+    /// `clean`: the router is stopping and nothing is accepted after it). Its clock is
+    /// the signing clock now (never below a timestamp the router issued).
+    pub(crate) fn take_state(&mut self, clean: bool, now: Timestamp) -> Option<SavedState> {
         if !self.has_keys() || !(self.changed || clean) {
             return None;
         }
@@ -170,7 +212,7 @@ impl Signing {
             .collect();
         Some(SavedState {
             clean,
-            clock: self.clock.floor(),
+            clock: self.clock.now(now).max(self.clock.floor()),
             streams,
         })
     }
@@ -207,7 +249,7 @@ mod tests {
             clock: 0,
             streams: vec![saved(known, 900), saved(evicted, 900)],
         };
-        assert_eq!(signing.restore(&state), 1);
+        assert_eq!(signing.restore(&state, false), 1);
         assert_eq!(signing.streams.last(&known), Some(1_000));
         assert_eq!(signing.streams.last(&evicted), Some(900 + UNCLEAN_MARGIN));
     }

@@ -5,22 +5,15 @@
 //! touched.
 
 use super::key::SigningKey;
-use crate::dialect;
 use crate::wire::Packet;
-use crate::wire::header::V2;
 use crate::wire::signing::SigningTime;
 pub use crate::wire::signing::{signed_len, wants_signature};
 
 /// `frame` signed with `key`, `link_id` and `timestamp`, or `None` if it is not to be
-/// signed (see [`wants_signature`]) or its message id is not in the dialect (its
-/// checksum cannot be made again). The bytes are edited by
-/// [`crate::wire::signing::add_signature`].
+/// signed (see [`wants_signature`]). The bytes are edited by
+/// [`crate::wire::signing::add_signature`], which needs no dialect: messages of a
+/// loaded dialect file and unknown ids taken in are signed too.
 pub fn sign(frame: &[u8], key: &SigningKey, link_id: u8, timestamp: SigningTime) -> Option<Packet> {
-    if !wants_signature(frame) {
-        return None;
-    }
-    // Only ids of the dialect reach a queue; their checksums are valid.
-    dialect::by_id(V2.read_message_id(frame))?;
     crate::wire::signing::add_signature(frame, key.as_bytes(), link_id, timestamp)
 }
 

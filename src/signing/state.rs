@@ -1,4 +1,5 @@
-//! The saved signing state: the router's clock floor and every stream's last timestamp,
+//! The saved signing state: the router's signing clock when it was saved and every
+//! stream's last timestamp,
 //! as a small text file the I/O layer writes atomically, so that a frame captured before
 //! a restart cannot be replayed after it.
 //!
@@ -11,7 +12,8 @@
 //! Keys are named by their fingerprint (see [`SigningKey::fingerprint`]), never by their
 //! bytes. `clean 0` marks a file written while running: after a crash, frames accepted
 //! after it was written may be replayable, so each stream's floor is raised by
-//! [`UNCLEAN_MARGIN`] when it is read.
+//! [`UNCLEAN_MARGIN`] when it is read, and so are the clock and what a stream first
+//! heard after the save must begin above (the `clock` line plus the margin).
 
 use std::fmt::Write;
 
@@ -70,7 +72,8 @@ pub struct SavedStream {
 pub struct SavedState {
     /// Written at a clean exit (nothing was accepted after it).
     pub clean: bool,
-    /// The router's clock floor.
+    /// The router's signing clock when the state was taken (never below a timestamp
+    /// it issued): the next run's clock floor.
     pub clock: u64,
     /// Every stream.
     pub streams: Vec<SavedStream>,

@@ -78,6 +78,11 @@ pub struct StreamTable {
     entries: HashMap<u64, Entry, BuildHasherDefault<PackedHasher>>,
     capacity: usize,
     uses: u64,
+    /// By key slot: what a stream the table does not know must begin above. It is
+    /// raised to the last timestamp of every stream the table forgot (so that a full
+    /// table cannot reopen a forgotten stream's last minute to replays), and after a
+    /// restart that did not follow a clean exit (see [`StreamTable::raise_floor`]).
+    floors: Vec<u64>,
 }
 
 impl Default for StreamTable {
@@ -93,7 +98,21 @@ impl StreamTable {
             entries: HashMap::default(),
             capacity: capacity.max(1),
             uses: 0,
+            floors: Vec::new(),
         }
+    }
+
+    /// What a new stream of key slot `key` must begin above (0: anything).
+    pub fn floor(&self, key: usize) -> u64 {
+        self.floors.get(key).copied().unwrap_or(0)
+    }
+
+    /// Raises what a new stream of key slot `key` must begin above to `timestamp`.
+    pub(crate) fn raise_floor(&mut self, key: usize, timestamp: u64) {
+        if self.floors.len() <= key {
+            self.floors.resize(key + 1, 0);
+        }
+        self.floors[key] = self.floors[key].max(timestamp);
     }
 
     /// The last accepted timestamp of `id`, if the stream is known.
@@ -134,7 +153,17 @@ impl StreamTable {
         }
         let (_, cut, _) = uses.select_nth_unstable(n - 1);
         let cut = *cut;
-        self.entries.retain(|_, e| e.used > cut);
+        let mut forgotten = Vec::new();
+        self.entries.retain(|packed, e| {
+            let keep = e.used > cut;
+            if !keep {
+                forgotten.push((StreamId::unpacked(*packed).key, e.last));
+            }
+            keep
+        });
+        for (key, last) in forgotten {
+            self.raise_floor(key, last);
+        }
     }
 
     /// Streams remembered.
@@ -179,6 +208,20 @@ mod tests {
         t.record(id(1), 5);
         assert_eq!(t.last(&id(1)), Some(10));
         assert_eq!(t.last(&id(2)), None);
+    }
+
+    #[test]
+    fn a_forgotten_stream_leaves_its_last_timestamp_as_its_keys_floor() {
+        let mut t = StreamTable::with_capacity(2);
+        let other_key = StreamId { key: 1, ..id(9) };
+        t.record(id(1), 500);
+        t.record(other_key, 900);
+        assert_eq!((t.floor(0), t.floor(1)), (0, 0));
+        t.record(id(2), 600); // stream 1 (key 0) is forgotten
+        assert_eq!(t.last(&id(1)), None);
+        assert_eq!((t.floor(0), t.floor(1)), (500, 0));
+        t.raise_floor(3, 7);
+        assert_eq!((t.floor(2), t.floor(3)), (0, 7));
     }
 
     #[test]

@@ -18,10 +18,12 @@ pub const WINDOW: u64 = 60 * UNITS_PER_SEC;
 pub enum Refusal {
     /// Signed, but the signature is not the key's for these bytes.
     BadSignature,
-    /// The timestamp is not after the last one accepted on its stream.
+    /// The timestamp is not after the last one accepted on its stream (or, on a stream
+    /// the router does not know, not after its key's floor: see
+    /// [`StreamTable::floor`]).
     Replayed,
-    /// The timestamp is more than [`WINDOW`] ahead of the router's clock, or a new
-    /// stream's first timestamp is more than [`WINDOW`] behind it.
+    /// The timestamp is more than [`WINDOW`] ahead of the router's clock, or more than
+    /// [`WINDOW`] behind it (on a stream that is new or silent for longer).
     OutOfWindow,
     /// Not signed, and the interface does not take unsigned frames.
     Unsigned,
@@ -51,20 +53,30 @@ pub struct Check<'a> {
 }
 
 impl Check<'_> {
+    /// Whether `frame` passes as far as its signature goes, its stream not looked at:
+    /// `Ok(true)` if it is signed with the key, `Ok(false)` if it is unsigned and the
+    /// interface takes unsigned frames.
+    pub fn authenticate(&self, frame: &Frame<'_>) -> Result<bool, Refusal> {
+        match frame.signature() {
+            None if self.allow_unsigned => Ok(false),
+            None => Err(Refusal::Unsigned),
+            Some(_) if verify(frame, self.key.as_bytes()) => Ok(true),
+            Some(_) => Err(Refusal::BadSignature),
+        }
+    }
+
     /// Checks `frame`; a frame that passes signed has its timestamp recorded in
     /// `streams`. Nothing is recorded for a refused frame, so a forgery cannot move a
     /// stream's timestamp.
     pub fn admit(&self, frame: &Frame<'_>, streams: &mut StreamTable) -> Admission {
-        let Some(signature) = frame.signature() else {
-            return if self.allow_unsigned {
-                Admission::Unsigned
-            } else {
-                Admission::Refused(Refusal::Unsigned)
-            };
-        };
-        if !verify(frame, self.key.as_bytes()) {
-            return Admission::Refused(Refusal::BadSignature);
+        match self.authenticate(frame) {
+            Err(why) => return Admission::Refused(why),
+            Ok(false) => return Admission::Unsigned,
+            Ok(true) => {}
         }
+        let Some(signature) = frame.signature() else {
+            return Admission::Unsigned;
+        };
         let timestamp = signature.timestamp();
         if timestamp > self.clock.saturating_add(WINDOW) {
             return Admission::Refused(Refusal::OutOfWindow);
@@ -76,10 +88,17 @@ impl Check<'_> {
             system: source.system,
             component: source.component,
         };
+        // A frame more than the window behind the clock is refused on a stream that is
+        // new, and on one silent for longer than the window (one restored from an old
+        // state file): either could otherwise take frames of any age. On a stream
+        // heard within the window such a frame is a replay anyway.
         match streams.last(&stream) {
             Some(last) if timestamp <= last => return Admission::Refused(Refusal::Replayed),
-            None if timestamp.saturating_add(WINDOW) < self.clock => {
+            _ if timestamp.saturating_add(WINDOW) < self.clock => {
                 return Admission::Refused(Refusal::OutOfWindow);
+            }
+            None if timestamp <= streams.floor(self.key_slot) => {
+                return Admission::Refused(Refusal::Replayed);
             }
             _ => {}
         }

@@ -276,9 +276,12 @@ fn saved_state_keeps_replays_out_after_a_restart() {
     let mut r = Rig::new(ACCEPT_ALL, false);
     let captured = signed("ATTITUDE", "1.1", r.next());
     assert_eq!(r.through(&captured), 1);
-    let clean = r.e.signing_state(true).expect("state");
+    let clean = r.e.signing_state(true, Timestamp::ZERO).expect("state");
     assert!(clean.clean);
-    assert!(r.e.signing_state(false).is_none(), "nothing changed since");
+    assert!(
+        r.e.signing_state(false, Timestamp::ZERO).is_none(),
+        "nothing changed since"
+    );
 
     // A new router, as after a restart, on the saved state.
     let text = clean.to_text();
@@ -295,7 +298,7 @@ fn saved_state_keeps_replays_out_after_a_restart() {
 
     // After a crash (the file written while running), the streams' floors are raised:
     // frames accepted after that write cannot be replayed either.
-    let mut crashed = r.e.signing_state(true).expect("state");
+    let mut crashed = r.e.signing_state(true, Timestamp::ZERO).expect("state");
     crashed.clean = false;
     let mut third = Rig::new(ACCEPT_ALL, false);
     third.e.restore_signing_state(&crashed);
@@ -319,7 +322,7 @@ fn the_routers_signatures_never_go_back_across_a_restart() {
     );
     let first = r.sent(r.keyed);
     let ts = captured_ts(&first[0].packet);
-    let state = r.e.signing_state(true).expect("state");
+    let state = r.e.signing_state(true, Timestamp::ZERO).expect("state");
     // The next run's wall clock is an hour behind (a board without a real-time clock).
     let config = config::load(ACCEPT_ALL).expect("config").config;
     let mut e = Engine::new(&config, RouterOptions::default());
@@ -392,4 +395,168 @@ fn only_frames_that_pass_the_check_are_recorded() {
         [good],
         "the forgery, the replay and the unsigned frame are not flight data"
     );
+}
+
+/// A copy of a frame taken in within the `dedup` window is dropped before the replay
+/// check (the same frame over a second radio), but at an interface with a key it must
+/// still pass the signature check, and a signed copy from a remote that has no link
+/// yet is refused as a replay: a copy makes no one a link.
+#[test]
+fn a_copy_within_the_dedup_window_makes_no_one_a_link_at_a_keyed_interface() {
+    let conf = "dedup 500ms;\n\
+        udp { port 14550; signing_key /nonexistent/gcs.key; }\n\
+        udp { port 14560; }\n\
+        default_action accept;\n";
+    let config = config::load(conf).expect("config").config;
+    let mut e = Engine::new(&config, RouterOptions::default());
+    let keys = [Some(SigningKey::from_bytes(KEY)), None];
+    let done = e.configure(&config, &keys, Timestamp::ZERO);
+    let ids: Vec<InterfaceId> = (done.requests.iter())
+        .filter_map(|r| match r {
+            mavtables::routing::Request::Open(id, _) => Some(*id),
+            _ => None,
+        })
+        .collect();
+    let [keyed, open] = ids[..] else {
+        panic!("two interfaces: {ids:?}")
+    };
+    e.set_wall_clock(Timestamp::ZERO, WALL);
+    let now = Timestamp::ZERO;
+    // The ground station has two remotes (two paths to it).
+    e.handle_datagram(keyed, peer(1), &signed("HEARTBEAT", "200.1", WALL + 1), now);
+    e.handle_datagram(keyed, peer(3), &signed("HEARTBEAT", "200.2", WALL + 2), now);
+    // An unsigned frame, taken in on the open interface, then sent again by a stranger
+    // to the keyed one.
+    let plain = frame("ATTITUDE", "201.1", None);
+    e.handle_datagram(open, peer(2), &plain, now);
+    let links = e.router().links().count();
+    e.handle_datagram(keyed, peer(9), &plain, now);
+    // The ground station's signed frame, and a stranger's copy of it.
+    let captured = signed("ATTITUDE", "200.1", WALL + 3);
+    e.handle_datagram(keyed, peer(1), &captured, now);
+    e.handle_datagram(keyed, peer(10), &captured, now);
+    assert_eq!(e.router().links().count(), links, "no new link");
+    let report = e.report();
+    let line = |start: &str| {
+        let found = report.lines().find(|l| l.trim_start().starts_with(start));
+        found.expect("a line").to_string()
+    };
+    let keyed_line = line("udp 0.0.0.0:14550");
+    assert!(
+        keyed_line.contains("1 unsigned dropped") && keyed_line.contains("1 replayed"),
+        "{report}"
+    );
+    // A copy over the ground station's other path is still only a copy.
+    e.handle_datagram(keyed, peer(3), &captured, now);
+    let report = e.report();
+    let other_path = report
+        .lines()
+        .find(|l| l.trim_start().starts_with("127.0.0.1:3:"))
+        .expect("the other path's line");
+    assert!(other_path.contains("1 duplicates dropped"), "{report}");
+}
+
+/// A frame the router signed, sent back to it, is a replay: the router's own
+/// signatures are streams like any other.
+#[test]
+fn a_frame_the_router_signed_is_refused_when_sent_back() {
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    let plain = frame("ATTITUDE", "201.1", None);
+    r.e.handle_datagram(r.open, peer(2), &plain, Timestamp::ZERO);
+    let out = r.sent(r.keyed);
+    assert_eq!(out.len(), 1);
+    assert_ne!(out[0].packet[2] & 1, 0, "signed on the way out");
+    r.e.handle_datagram(r.keyed, peer(1), &out[0].packet, Timestamp::ZERO);
+    assert_eq!(r.sent(r.open).len(), 0, "the reflected copy is refused");
+    assert!(r.e.report().contains("1 replayed"), "{}", r.e.report());
+}
+
+/// When the stream table is full, the streams it forgets leave their last timestamp
+/// behind: a forgotten stream's frames cannot be replayed as a new stream's.
+#[test]
+fn a_stream_pushed_out_of_a_full_table_cannot_be_replayed() {
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    let captured = signed("ATTITUDE", "200.1", r.next());
+    assert_eq!(r.through(&captured), 1);
+    for n in 0..mavtables::signing::streams::MAX_STREAMS as u32 {
+        let from = format!("{}.{}", 1 + n / 250, 1 + n % 250);
+        let ts = r.next();
+        r.e.handle_datagram(
+            r.keyed,
+            peer(4),
+            &signed("HEARTBEAT", &from, ts),
+            Timestamp::ZERO,
+        );
+    }
+    while !r.sent(r.open).is_empty() {}
+    assert_eq!(r.through(&captured), 0, "replayed after being pushed out");
+}
+
+/// A state file saved long ago (its writes failed since, or it was left behind) does
+/// not open its streams to frames of any age: a frame more than the window behind the
+/// clock is refused on a stream restored from it, as on a new one.
+#[test]
+fn a_stale_saved_stream_takes_no_frame_older_than_the_window() {
+    let hour = 3600 * UNITS_PER_SEC;
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    let old = signed("ATTITUDE", "200.5", WALL - hour);
+    let state = mavtables::signing::state::SavedState::parse(&format!(
+        "mavtables signing state 1\nclean 1\nclock {}\nstream {} 1 200 5 {}\n",
+        WALL - hour,
+        SigningKey::from_bytes(KEY)
+            .fingerprint()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>(),
+        WALL - hour
+    ))
+    .expect("parses");
+    r.e.restore_signing_state(&state);
+    let captured_since = signed("ATTITUDE", "200.5", WALL - hour / 2);
+    assert_eq!(r.through(&old), 0);
+    assert_eq!(r.through(&captured_since), 0, "half an hour old");
+    let now = signed("ATTITUDE", "200.5", r.next());
+    assert_eq!(r.through(&now), 1);
+}
+
+/// After a crash, a stream first heard after the last save is not in the file: a new
+/// stream must begin after that save plus the margin, or its captured frames could be
+/// replayed after the restart. So must the router's own signatures.
+#[test]
+fn after_a_crash_a_stream_first_heard_after_the_last_save_cannot_be_replayed() {
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    let mut saved = r.e.signing_state(true, Timestamp::ZERO).expect("state");
+    saved.clean = false;
+    let captured = signed("COMMAND_LONG", "200.2", r.next());
+    assert_eq!(r.through(&captured), 1);
+    // The router's last signature before the crash.
+    let plain = frame("ATTITUDE", "201.1", None);
+    r.e.handle_datagram(r.open, peer(2), &plain, Timestamp::ZERO);
+    let last_signed = captured_ts(&r.sent(r.keyed)[0].packet);
+
+    let mut again = Rig::new(ACCEPT_ALL, false);
+    again.e.restore_signing_state(&saved);
+    assert_eq!(again.through(&captured), 0, "replayed after the crash");
+    again
+        .e
+        .handle_datagram(again.open, peer(2), &plain, Timestamp::ZERO);
+    let first_signed = captured_ts(&again.sent(again.keyed)[0].packet);
+    assert!(first_signed > last_signed, "{first_signed} > {last_signed}");
+}
+
+/// Frames of ids the built-in dialect does not know (taken in under `unknown_messages
+/// accept;`, or from a loaded dialect file) are signed on the way out like any other.
+#[test]
+fn a_frame_of_an_unknown_id_is_signed_on_the_way_out() {
+    let mut r = Rig::new("unknown_messages accept;\ndefault_action accept;", false);
+    // MAVLink 2, 3-byte payload, seq 0, from 201.1, message id 60123.
+    let id = 60_123u32.to_le_bytes();
+    let unknown = [
+        0xFD, 3, 0, 0, 0, 201, 1, id[0], id[1], id[2], 1, 2, 3, 0x12, 0x34,
+    ];
+    r.e.handle_datagram(r.open, peer(2), &unknown, Timestamp::ZERO);
+    let out = r.sent(r.keyed);
+    assert_eq!(out.len(), 1, "{}", r.e.report());
+    assert_eq!(out[0].packet.len(), unknown.len() + 13);
+    assert_ne!(out[0].packet[2] & 1, 0, "signed");
 }

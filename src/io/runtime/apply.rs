@@ -100,7 +100,7 @@ impl Runtime {
         let text = String::from_utf8_lossy(&bytes);
         if let Ok(mut state) = SavedState::parse(&text) {
             state.streams.retain(|s| new_keys.contains(&s.key));
-            self.engine.restore_signing_state(&state);
+            self.engine.restore_signing_streams(&state);
         }
     }
 
@@ -167,7 +167,7 @@ impl Runtime {
         if done.signing_state_changed {
             if let Some(file) = self.state_file.take() {
                 self.feed_watchdog_now(self.now());
-                file.finish(self.engine.signing_state(true).as_ref());
+                file.finish(self.engine.signing_state(true, self.now()).as_ref());
             }
             match open_state_file(config, &mut self.engine, now) {
                 Ok(file) => {

@@ -258,15 +258,21 @@ impl Engine {
         self.core.signing.has_keys()
     }
 
-    /// Takes over signing state saved by an earlier run (after every
+    /// Takes over signing state saved by an earlier run, before any frame (after every
     /// [`Engine::set_signing`]); returns how many streams it knew.
     pub fn restore_signing_state(&mut self, state: &SavedState) -> usize {
-        self.core.signing.restore(state)
+        self.core.signing.restore(state, true)
     }
 
-    /// The signing state to save, if it changed since the last call (always when
-    /// `clean`: the router is stopping).
-    pub fn signing_state(&mut self, clean: bool) -> Option<SavedState> {
-        self.core.signing.take_state(clean)
+    /// Takes the streams of `state`, saved by this run, that the table does not know
+    /// (those of keys a reload added); returns how many.
+    pub fn restore_signing_streams(&mut self, state: &SavedState) -> usize {
+        self.core.signing.restore(state, false)
+    }
+
+    /// The signing state to save at `now`, if it changed since the last call (always
+    /// when `clean`: the router is stopping).
+    pub fn signing_state(&mut self, clean: bool, now: Timestamp) -> Option<SavedState> {
+        self.core.signing.take_state(clean, now)
     }
 }

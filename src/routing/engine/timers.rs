@@ -55,7 +55,7 @@ impl Engine {
             if self.config.stats.is_some() {
                 self.core.notices.push_back(Notice::PublishStats);
             }
-            if let Some(state) = self.core.signing.take_state(false) {
+            if let Some(state) = self.core.signing.take_state(false, now) {
                 self.core
                     .notices
                     .push_back(Notice::SaveSigningState(Box::new(state)));
