@@ -113,6 +113,8 @@ pub(super) struct RecvBatch {
     headers: Box<RecvHeaders>,
     lens: [usize; MAX_BATCH],
     addrs: [Option<SocketAddr>; MAX_BATCH],
+    /// Whether each datagram was longer than its slot (the kernel cut it).
+    cut: [bool; MAX_BATCH],
     count: usize,
 }
 
@@ -141,17 +143,28 @@ impl RecvBatch {
             headers,
             lens: [0; MAX_BATCH],
             addrs: [None; MAX_BATCH],
+            cut: [false; MAX_BATCH],
             count: 0,
         }
     }
 
-    /// Datagrams received by the last call: (sender, bytes). A sender that is neither
-    /// IPv4 nor IPv6 is `None`.
+    /// Datagrams received whole by the last call: (sender, bytes). A sender that is
+    /// neither IPv4 nor IPv6 is `None`.
     pub(super) fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
-        (0..self.count).map(move |i| {
+        (0..self.count).filter(|&i| !self.cut[i]).map(move |i| {
             let start = i * self.slot_len;
             (self.addrs[i], &self.data[start..start + self.lens[i]])
         })
+    }
+
+    /// The bytes received of the datagrams of the last call that were longer than a
+    /// slot: the kernel dropped the rest, so they are not handed on (a frame cut there
+    /// would be joined to the next datagram's bytes).
+    pub(super) fn cut_bytes(&self) -> usize {
+        (0..self.count)
+            .filter(|&i| self.cut[i])
+            .map(|i| self.lens[i])
+            .sum()
     }
 }
 
@@ -184,6 +197,7 @@ pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result
     for i in 0..n {
         batch.lens[i] = (h.msgs[i].msg_len as usize).min(batch.slot_len);
         batch.addrs[i] = from_raw(&h.names[i]);
+        batch.cut[i] = h.msgs[i].msg_hdr.msg_flags & libc::MSG_TRUNC != 0;
     }
     batch.count = n;
     Ok(n)
@@ -206,6 +220,7 @@ pub(super) fn recv_one(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<u
     }
     batch.lens[0] = (n as usize).min(batch.slot_len);
     batch.addrs[0] = from_raw(&h.names[0]);
+    batch.cut[0] = h.msgs[0].msg_hdr.msg_flags & libc::MSG_TRUNC != 0;
     batch.count = 1;
     Ok(1)
 }
@@ -699,6 +714,36 @@ pub(crate) fn disable_udp_checksums(fd: &impl AsRawFd) -> io::Result<()> {
 mod tests {
     use super::*;
     use std::net::UdpSocket;
+
+    #[test]
+    fn a_datagram_longer_than_its_slot_is_not_handed_on_but_counted() {
+        let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let to = rx.local_addr().expect("addr");
+        for (n, read_one) in [(3000, true), (3001, false)] {
+            tx.send_to(&vec![7u8; n], to).expect("send");
+            tx.send_to(&[1, 2, 3], to).expect("send");
+            let mut batch = RecvBatch::new(2048);
+            let (mut whole, mut cut) = (Vec::new(), 0);
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+            while whole.is_empty() && std::time::Instant::now() < deadline {
+                let got = match read_one {
+                    true => recv_one(&rx, &mut batch),
+                    false => recv_batch(&rx, &mut batch),
+                };
+                match got {
+                    Ok(_) => {
+                        cut += batch.cut_bytes();
+                        whole.extend(batch.iter().map(|(_, b)| b.to_vec()));
+                    }
+                    Err(e) if e.kind() == io::ErrorKind::WouldBlock => std::thread::yield_now(),
+                    Err(e) => panic!("recv: {e}"),
+                }
+            }
+            assert_eq!(cut, 2048, "the part read of the long one");
+            assert_eq!(whole, [vec![1, 2, 3]], "only the whole one");
+        }
+    }
 
     #[test]
     fn batches_round_trip_over_loopback() {

@@ -340,7 +340,7 @@ impl Driver for TcpStreamDriver {
             return Ok(true);
         };
         self.connect_by = Some(now + CONNECT_LIMIT);
-        match Lookup::start(&client.remote, &client.waker).poll() {
+        match Lookup::start(&client.remote, client.local, &client.waker).poll() {
             Ok(to) => {
                 let (stream, done) = Self::connect(to?, client.local)?;
                 self.stream = Some(stream);

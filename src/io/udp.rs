@@ -12,7 +12,7 @@ use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::os::fd::{AsRawFd, RawFd};
 
-use socket2::{Domain, Protocol, Socket, Type};
+use socket2::{Domain, Protocol, SockRef, Socket, Type};
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -28,8 +28,8 @@ use crate::routing::{Engine, InterfaceId, Timestamp, Transmit};
 
 /// Socket buffer sizes asked for, so bursts are not dropped by the kernel.
 const SOCKET_BUFFER: usize = 4 * 1024 * 1024;
-/// Longest datagram read whole; longer ones are cut (a MAVLink frame is at most 280
-/// bytes; several frames may share a datagram).
+/// Longest datagram read whole; longer ones are dropped and counted as junk (a MAVLink
+/// frame is at most 280 bytes; several frames may share a datagram).
 const DATAGRAM_MAX: usize = 8192;
 /// Receive batches taken per wake-up before the loop gets a turn to send.
 const BATCHES_PER_TURN: usize = 8;
@@ -42,7 +42,7 @@ const BURST_GAP: Duration = Duration::from_micros(50);
 const NOWHERE: SocketAddr = SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0));
 
 /// Binds a non-blocking socket with large buffers at `local`.
-fn bind(local: SocketAddr, label: &str) -> io::Result<UdpSocket> {
+fn bind(local: SocketAddr) -> io::Result<UdpSocket> {
     let socket = Socket::new(Domain::for_address(local), Type::DGRAM, Some(Protocol::UDP))?;
     if local.is_ipv6() && local.ip().is_unspecified() {
         // `address ::;` takes IPv4 peers too, as `::ffff:a.b.c.d`.
@@ -55,21 +55,23 @@ fn bind(local: SocketAddr, label: &str) -> io::Result<UdpSocket> {
     if sys::force_buffer_size(&socket, false, SOCKET_BUFFER).is_err() {
         let _ = socket.set_send_buffer_size(SOCKET_BUFFER);
     }
-    // Linux reports twice the size asked for (the rest is its bookkeeping).
-    if let Ok(got) = socket.recv_buffer_size()
-        && got < SOCKET_BUFFER
-    {
-        log::warn(&format_args!(
-            "{label}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
-             may be dropped by the kernel; raise the limit with \
-             `sysctl -w net.core.rmem_max={SOCKET_BUFFER}`",
-            got / 2 / 1024,
-            SOCKET_BUFFER / 1024
-        ));
-    }
     socket.set_nonblocking(true)?;
     socket.bind(&local.into())?;
     Ok(socket.into())
+}
+
+/// Counts the `bytes` read of datagrams longer than [`DATAGRAM_MAX`] on interface `id`
+/// (`label`) as junk (the kernel dropped their rest); said once per interface (`said`).
+#[cold]
+fn cut_datagram(engine: &mut Engine, id: InterfaceId, label: &str, said: &mut bool, bytes: usize) {
+    engine.stream_junk(id, bytes);
+    if !*said {
+        *said = true;
+        log::warn(&format_args!(
+            "{label}: a datagram longer than {DATAGRAM_MAX} bytes was dropped (counted as junk \
+             bytes; further ones are only counted)"
+        ));
+    }
 }
 
 /// The address to send to from a socket of the given family: an IPv4 peer of an IPv6
@@ -116,6 +118,10 @@ pub struct UdpDriver {
     waker: Arc<Waker>,
     /// A client's look-up of its remote, while under way.
     lookup: Option<Lookup>,
+    /// A receive buffer smaller than asked for has been said.
+    small_buffer_said: bool,
+    /// A datagram too long to read whole has been said.
+    cut_said: bool,
 }
 
 impl UdpDriver {
@@ -147,17 +153,37 @@ impl UdpDriver {
             last_single: None,
             waker,
             lookup: None,
+            small_buffer_said: false,
+            cut_said: false,
         };
         if config.connect.is_none() {
             let local = SocketAddr::new(config.local_address(), config.port);
-            let socket = bind(local, &driver.label)
+            let socket = bind(local)
                 .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", driver.label)))?;
             driver.adopt(socket);
         }
         Ok(driver)
     }
 
+    /// Takes `socket` as the interface's; a receive buffer smaller than asked for is
+    /// said once per interface (a client binds again at every open).
     fn adopt(&mut self, socket: UdpSocket) {
+        // Linux reports twice the size asked for (the rest is its bookkeeping).
+        let got = SockRef::from(&socket).recv_buffer_size();
+        if let Ok(got) = got
+            && got < SOCKET_BUFFER
+            && !self.small_buffer_said
+        {
+            self.small_buffer_said = true;
+            log::warn(&format_args!(
+                "{}: the receive buffer is {} KiB, not the {} KiB asked for, so bursts \
+                 may be dropped by the kernel; raise the limit with \
+                 `sysctl -w net.core.rmem_max={SOCKET_BUFFER}`",
+                self.label,
+                got / 2 / 1024,
+                SOCKET_BUFFER / 1024
+            ));
+        }
         self.gso = sys::gso_supported(&socket);
         self.v6 = socket.local_addr().is_ok_and(|a| a.is_ipv6());
         self.socket = Some(socket);
@@ -170,7 +196,7 @@ impl UdpDriver {
             SocketAddr::V4(_) => IpAddr::from([0u8; 4]),
             SocketAddr::V6(_) => IpAddr::from([0u16; 8]),
         });
-        let socket = bind(SocketAddr::new(local_ip, self.config.port), &self.label)?;
+        let socket = bind(SocketAddr::new(local_ip, self.config.port))?;
         if target.is_ipv4() {
             // A broadcast address needs it; any other target does not mind it.
             socket.set_broadcast(true)?;
@@ -232,7 +258,7 @@ impl Driver for UdpDriver {
         let Some(remote) = &self.config.connect else {
             return Ok(true);
         };
-        match Lookup::start(remote, &self.waker).poll() {
+        match Lookup::start(remote, self.config.address, &self.waker).poll() {
             Ok(target) => {
                 self.bind_for(target?, engine)?;
                 Ok(true)
@@ -280,6 +306,10 @@ impl Driver for UdpDriver {
             // One datagram read on its own, and the loop turns right after it: what it
             // routes may be sent at once (`Engine::handle_datagram_direct`).
             let single = !self.batching;
+            let cut = self.batch.cut_bytes();
+            if cut > 0 {
+                cut_datagram(engine, self.interface, &self.label, &mut self.cut_said, cut);
+            }
             for (from, bytes) in self.batch.iter() {
                 match from {
                     Some(from) if single => {

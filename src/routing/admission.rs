@@ -4,7 +4,7 @@
 //! sources can neither grow memory nor fill the log, and never displaces a link that
 //! already carries traffic.
 
-use std::net::IpAddr;
+use std::net::{IpAddr, SocketAddr};
 
 use crate::config::PeerLimits;
 
@@ -15,6 +15,8 @@ pub enum Refusal {
     NotAllowed,
     /// The interface already has `max_peers` links.
     Full,
+    /// It sent from port 0, which cannot be answered (counted as not allowed).
+    PortZero,
 }
 
 /// Remotes refused so far, per reason.
@@ -24,6 +26,8 @@ pub struct Refused {
     pub not_allowed: u64,
     /// Datagrams or connections from new remotes while the interface was full.
     pub full: u64,
+    /// Datagrams from port 0 (no reply can reach it; reported within `not_allowed`).
+    pub port_zero: u64,
 }
 
 impl Refused {
@@ -32,16 +36,20 @@ impl Refused {
         let n = match why {
             Refusal::NotAllowed => &mut self.not_allowed,
             Refusal::Full => &mut self.full,
+            Refusal::PortZero => &mut self.port_zero,
         };
         *n += 1;
         *n == 1
     }
 }
 
-/// Whether a new remote at `ip` may become a link when `current` links exist.
-pub(crate) fn admit(limits: &PeerLimits, current: usize, ip: IpAddr) -> Result<(), Refusal> {
-    let ip = match ip {
-        IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(ip, IpAddr::V4),
+/// Whether a new remote at `peer` may become a link when `current` links exist.
+pub(crate) fn admit(limits: &PeerLimits, current: usize, peer: SocketAddr) -> Result<(), Refusal> {
+    if peer.port() == 0 {
+        return Err(Refusal::PortZero);
+    }
+    let ip = match peer.ip() {
+        IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(IpAddr::V6(v6), IpAddr::V4),
         v4 => v4,
     };
     if !limits.allow.is_empty() && !limits.allow.iter().any(|r| r.contains(ip)) {
@@ -69,6 +77,10 @@ pub(crate) fn refusal_text(
             "{described}: {} remotes already (max_peers); new remotes are refused until one \
              goes (further ones are only counted)",
             limits.max_peers
+        ),
+        Refusal::PortZero => format!(
+            "{described}: {peer} sent from port 0, which no reply can reach; such remotes \
+             are refused (counted as not allowed; further ones are only counted)"
         ),
     }
 }

@@ -135,7 +135,8 @@ impl fmt::Display for InterfaceReport<'_> {
             write!(
                 f,
                 ", {} refused (not allowed), {} refused (max_peers)",
-                r.not_allowed, r.full
+                r.not_allowed + r.port_zero,
+                r.full
             )?;
         }
         if let Some(s) = self.signing {

@@ -526,3 +526,29 @@ fn a_tcp_client_tries_at_once_then_at_most_every_second() {
     }
     assert_eq!(attempts, [0, 200, 600, 1400, 2400, 3400, 4400]);
 }
+
+/// A datagram from port 0 cannot be answered (sending to port 0 fails): its sender is
+/// refused, counted as not allowed, and said once, never made a link.
+#[test]
+fn a_remote_sending_from_port_0_never_becomes_a_link() {
+    let mut e = engine(ACCEPT);
+    let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+    let nowhere = SocketAddr::from(([127, 0, 0, 1], 0));
+    for _ in 0..3 {
+        e.handle_datagram(
+            udp,
+            nowhere,
+            &frame("HEARTBEAT", "7.1", None),
+            Timestamp::ZERO,
+        );
+    }
+    assert_eq!(e.router().links().count(), 0);
+    let said = warnings(&mut e);
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(said[0].contains("sent from port 0"), "{said:?}");
+    assert!(
+        e.report().contains("3 refused (not allowed)"),
+        "{}",
+        e.report()
+    );
+}

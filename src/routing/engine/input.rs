@@ -37,7 +37,7 @@ impl Engine {
             } => {
                 let link = remotes.link_of(peer);
                 if link.is_none()
-                    && let Err(why) = admission::admit(limits, remotes.len(), peer.ip())
+                    && let Err(why) = admission::admit(limits, remotes.len(), peer)
                 {
                     if refused.count(why) {
                         let text = admission::refusal_text(described, why, peer.ip(), limits);
@@ -126,8 +126,8 @@ impl Engine {
         self.take_output();
     }
 
-    /// Counts `n` bytes that stream interface `id` received but does not route (a
-    /// WebSocket's text message) as junk of its parser.
+    /// Counts `n` bytes that interface `id` received but does not route (a WebSocket's
+    /// text message, a datagram too long to read whole) as junk of its parser.
     pub fn stream_junk(&mut self, id: InterfaceId, n: usize) {
         if let Some(interface) = self.interfaces.get_mut(id.0) {
             interface.parser.count_dropped(n);

@@ -163,7 +163,7 @@ impl Engine {
         else {
             return None;
         };
-        if let Err(why) = admission::admit(limits, *connections, peer.ip()) {
+        if let Err(why) = admission::admit(limits, *connections, peer) {
             if server.refused.count(why) {
                 let text = admission::refusal_text(&server.described, why, peer.ip(), limits);
                 self.core.notices.push_back(Notice::Warning(text));
