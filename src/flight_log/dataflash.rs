@@ -157,7 +157,9 @@ impl Dataflash {
                 std::collections::btree_map::Entry::Occupied(_) => acts.duplicates += 1,
             }
         }
+        // Asking may give up the block the file waits for: what that frees goes on.
         self.ask(now, NACKS_PER_BLOCK, acts);
+        self.drain(acts);
         Verdict::Taken
     }
 
@@ -343,6 +345,24 @@ mod tests {
         let nacks = acts.statuses.iter().filter(|(_, ack)| !ack).count();
         assert_eq!(nacks, usize::from(MAX_ASKS));
         assert_eq!((acts.lost, acts.blocks), (1, 2));
+    }
+
+    /// The block the file waits for is given up while another block is taken (its last
+    /// ask ran out in that turn): the file goes on at once, with nothing left to wait for.
+    #[test]
+    fn a_block_given_up_while_another_comes_lets_the_file_go_on() {
+        let mut d = Dataflash::new();
+        let mut acts = Acts::default();
+        d.block(0, &data(0), at(0), &mut acts);
+        d.block(2, &data(2), at(0), &mut acts);
+        for k in 1..u64::from(MAX_ASKS) {
+            d.handle_timeout(at(200 * k), &mut acts);
+        }
+        assert_eq!(acts.blocks, 1, "block 1 still awaited");
+        d.block(3, &data(3), at(2000), &mut acts);
+        assert_eq!((acts.blocks, acts.lost), (3, 1));
+        assert_eq!(d.poll_timeout(), None);
+        assert_eq!(d.next(), 4);
     }
 
     #[test]

@@ -149,6 +149,9 @@ pub struct FlightLogger {
     /// Bytes in `writes`.
     writes_bytes: usize,
     counters: FlightLogCounters,
+    /// Where the last log that ended got to (its protocol and last block or chunk):
+    /// its blocks may still come in the first moments of the next log.
+    last_end: Option<(Protocol, u32)>,
 }
 
 impl FlightLogger {
@@ -164,6 +167,7 @@ impl FlightLogger {
             writes: VecDeque::new(),
             writes_bytes: 0,
             counters: FlightLogCounters::default(),
+            last_end: None,
         }
     }
 
@@ -308,17 +312,23 @@ impl FlightLogger {
         });
     }
 
-    /// Begins a log in `protocol`: asks for the stream, tells the writer.
+    /// Begins a log in `protocol`: asks for the stream, tells the writer. Blocks of the
+    /// log before (one that ended at a disarm, or when the autopilot went quiet) may
+    /// still be on their way: for `DRAIN` they are told from the new log's as when the
+    /// autopilot begins a new log by itself.
     fn start(&mut self, protocol: Protocol, now: Timestamp) {
         self.send_start(protocol);
         self.begin(protocol);
+        let earlier = (self.last_end.take())
+            .filter(|(p, _)| *p == protocol)
+            .map(|(_, end)| Earlier::ended(end, now));
         self.active = Some(Active {
             protocol,
             stream: fresh(protocol),
             start_again: now + START_AGAIN,
             restarted: false,
             ending: None,
-            earlier: None,
+            earlier,
         });
         self.stop_again = None;
     }
@@ -344,6 +354,11 @@ impl FlightLogger {
     /// tells the writer.
     fn stop(&mut self, now: Timestamp) {
         if let Some(mut active) = self.active.take() {
+            self.last_end = match &active.stream {
+                Stream::Dataflash(d) => d.highest(),
+                Stream::Ulog(u) => u.expected().map(|e| u32::from(e.wrapping_sub(1))),
+            }
+            .map(|end| (active.protocol, end));
             if let Stream::Dataflash(d) = &mut active.stream {
                 // The gaps will not be filled now; what came after them ends the file.
                 let mut ending = Acts::default();
@@ -388,8 +403,12 @@ impl FlightLogger {
         let Stream::Dataflash(d) = &mut active.stream else {
             return;
         };
-        if let (Some(earlier), Some(highest)) = (active.earlier, d.highest()) {
-            let gap = seqno.saturating_sub(highest.saturating_add(1));
+        if let Some(earlier) = active.earlier {
+            // Before its first block, the new log is at 0.
+            let gap = match d.highest() {
+                Some(highest) => seqno.saturating_sub(highest.saturating_add(1)),
+                None => seqno,
+            };
             if earlier.claims(now, seqno.abs_diff(earlier.end), gap) {
                 self.counters.late += 1;
                 return;
@@ -454,7 +473,9 @@ impl FlightLogger {
         let Stream::Ulog(u) = &mut active.stream else {
             return;
         };
-        if let (Some(earlier), Some(expected)) = (active.earlier, u.expected()) {
+        if let Some(earlier) = active.earlier {
+            // Before its first chunk, the new log is at 0.
+            let expected = u.expected().unwrap_or(0);
             let end = earlier.end as u16;
             let distance = chunk
                 .sequence
@@ -484,6 +505,7 @@ impl FlightLogger {
         }
         self.counters.lost += acts.lost;
         self.counters.duplicates += acts.duplicates;
+        self.counters.late += acts.before_start;
         self.write_data(acts.bytes, u64::from(acts.chunks));
     }
 

@@ -8,6 +8,8 @@ use super::messages::UlogChunk;
 
 /// Bytes of the ulog file header (magic, version, timestamp) before the first message.
 pub(crate) const HEADER_LEN: usize = 16;
+/// What every ulog file begins with (before its version byte).
+const MAGIC: &[u8] = b"ULog\x01\x12\x35";
 /// `first_message_offset` of a chunk in which no message starts.
 const NO_MESSAGE_START: u8 = 255;
 /// A ulog message's own header: size (u16) and type.
@@ -24,6 +26,8 @@ pub(crate) struct UlogActs {
     pub lost: u64,
     /// Chunks received twice.
     pub duplicates: u64,
+    /// Chunks that came before the log's first one (the file header): not this log's.
+    pub before_start: u64,
 }
 
 /// One ulog being received.
@@ -58,8 +62,13 @@ impl Ulog {
         self.expected
     }
 
-    /// Takes `chunk`.
+    /// Takes `chunk`. A log begins with the chunk that holds the file header: a chunk
+    /// before it (of the log before, still on its way) is not taken, and starts nothing.
     pub(crate) fn chunk(&mut self, chunk: &UlogChunk, acts: &mut UlogActs) {
+        if self.expected.is_none() && !chunk.data.starts_with(MAGIC) {
+            acts.before_start += 1;
+            return;
+        }
         if let Some(expected) = self.expected {
             let ahead = chunk.sequence.wrapping_sub(expected);
             if ahead >= 0x8000 {
@@ -120,9 +129,28 @@ mod tests {
         m
     }
 
+    fn header() -> [u8; HEADER_LEN] {
+        let mut h = [7u8; HEADER_LEN];
+        h[..MAGIC.len()].copy_from_slice(MAGIC);
+        h
+    }
+
+    #[test]
+    fn a_log_begins_with_its_header_and_nothing_before_it_is_taken() {
+        let mut u = Ulog::new();
+        let mut acts = UlogActs::default();
+        let late = message(b'L', &[9; 6]);
+        u.chunk(&chunk(812, 0, &late), &mut acts);
+        assert_eq!((acts.before_start, acts.chunks, u.started()), (1, 0, false));
+        let first = [header().as_slice(), &message(b'A', &[1; 3])].concat();
+        u.chunk(&chunk(0, 16, &first), &mut acts);
+        assert_eq!(acts.bytes, first);
+        assert_eq!(u.expected(), Some(1));
+    }
+
     #[test]
     fn whole_messages_only_and_a_lost_chunk_drops_the_message_it_cut() {
-        let header = [7u8; HEADER_LEN];
+        let header = header();
         let a = message(b'A', &[1; 10]);
         let b = message(b'B', &[2; 10]);
         let c = message(b'C', &[3; 4]);

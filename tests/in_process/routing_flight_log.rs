@@ -762,3 +762,47 @@ fn a_chunk_of_the_px4_log_before_stays_out_of_the_new_file() {
     let (c, _) = v.e.flight_log_counters().expect("configured");
     assert_eq!((c.late, c.lost, c.duplicates), (1, 0, 0));
 }
+
+/// Armed again while the last PX4 log drains: a chunk of that log, still on its way,
+/// neither starts the new file nor shifts it (a new log begins with its file header).
+#[test]
+fn a_late_px4_chunk_does_not_start_the_next_log() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    for s in 0..100 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    v.from(AUTOPILOT, &heartbeat(12, false));
+    v.wait(Duration::from_millis(300));
+    v.from(AUTOPILOT, &heartbeat(12, true));
+    v.writes();
+    v.from(AUTOPILOT, &ulog_chunk(100));
+    for s in 0..4 {
+        v.from(AUTOPILOT, &ulog_chunk(s));
+    }
+    assert_eq!(data(&v.writes()), (ulog_bytes(0..4), 4));
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!((c.late, c.duplicates), (1, 0));
+}
+
+/// The link came back after the autopilot went quiet (its log ended): a block of the
+/// old log still on its way is not taken for a log joined under way, so the new log
+/// is one file from its block 0.
+#[test]
+fn a_late_dataflash_block_after_a_lost_link_does_not_open_a_file_of_its_own() {
+    let mut v = after_a_long_log();
+    v.wait(Duration::from_secs(6));
+    v.from(AUTOPILOT, &block(1100, "245.190"));
+    v.from(AUTOPILOT, &heartbeat(3, false));
+    v.writes();
+    v.from(AUTOPILOT, &block(1101, "245.190"));
+    v.from(AUTOPILOT, &block(0, "245.190"));
+    let writes = v.writes();
+    let begins = writes
+        .iter()
+        .filter(|w| matches!(w, LogWrite::Begin(_)))
+        .count();
+    assert_eq!(begins, 0, "{writes:?}");
+    assert!(!writes.contains(&LogWrite::End), "{writes:?}");
+    assert_eq!(data(&writes).0, expected([0]));
+}
