@@ -8,7 +8,7 @@ use std::io;
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicU64;
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use super::manifest::MadeList;
 use super::writer_thread::add;
@@ -152,11 +152,54 @@ pub(super) fn room_plan(
     let Ok(free) = sys::free_bytes(dir) else {
         return room;
     };
-    if free >= min_free.saturating_add(needed) {
+    let now = Instant::now();
+    let counted = made.freeing.counted(free, now);
+    if counted >= min_free.saturating_add(needed) {
         return room;
     }
     let files = made.recordings();
-    rotation::make_room(&files, free, needed, min_free, current)
+    let plan = rotation::make_room(&files, counted, needed, min_free, current);
+    let removed = (files.iter())
+        .filter(|f| plan.remove.contains(&f.name))
+        .map(|f| f.bytes)
+        .sum();
+    made.freeing.removed(counted, removed, now);
+    plan
+}
+
+/// How long space that removed files should free is counted as free before the disk
+/// shows it: a file system may give it back only later (btrfs, ZFS), and a file another
+/// program holds open keeps its space until it is closed.
+const FREEING_WAIT: Duration = Duration::from_secs(30);
+
+/// The space the files last removed for `min_free_bytes` should free. Until the disk
+/// shows it (or for [`FREEING_WAIT`]), it is counted as free: otherwise each write
+/// would find the disk still short and remove the next oldest file, and the next,
+/// until none was left.
+#[derive(Debug, Default)]
+pub(crate) struct Freeing {
+    /// What the disk should show once the space is back, and since when.
+    expected: Option<(u64, Instant)>,
+}
+
+impl Freeing {
+    /// The free space to plan with when the disk shows `free` at `now`.
+    fn counted(&mut self, free: u64, now: Instant) -> u64 {
+        match self.expected {
+            Some((expected, since)) if free < expected && now < since + FREEING_WAIT => expected,
+            _ => {
+                self.expected = None;
+                free
+            }
+        }
+    }
+
+    /// Files of `bytes` in all are removed at `now`, when `counted` bytes were free.
+    fn removed(&mut self, counted: u64, bytes: u64, now: Instant) {
+        if bytes > 0 {
+            self.expected = Some((counted.saturating_add(bytes), now));
+        }
+    }
 }
 
 /// The local calendar time now (UTC if the C library cannot tell).
@@ -181,6 +224,26 @@ pub(super) fn local_now() -> LocalTime {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn space_being_freed_counts_as_free_until_it_shows_or_the_wait_is_over() {
+        let mut f = Freeing::default();
+        let t0 = Instant::now();
+        assert_eq!(f.counted(100, t0), 100);
+        f.removed(100, 50, t0);
+        // The disk still shows 100: planned with 150, so no second file goes.
+        assert_eq!(f.counted(100, t0 + Duration::from_secs(1)), 150);
+        // The space showed up: what the disk says from now on.
+        assert_eq!(f.counted(160, t0 + Duration::from_secs(2)), 160);
+        assert_eq!(f.counted(120, t0 + Duration::from_secs(3)), 120);
+        // It never shows: after the wait, the disk is believed again.
+        f.removed(120, 50, t0);
+        assert_eq!(
+            f.counted(120, t0 + FREEING_WAIT - Duration::from_secs(1)),
+            170
+        );
+        assert_eq!(f.counted(120, t0 + FREEING_WAIT), 120);
+    }
 
     /// An empty scratch directory named after `tag`, and a pattern of names in it.
     fn scratch(tag: &str) -> (PathBuf, FilePattern) {

@@ -12,6 +12,7 @@ use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
+use super::made_files::Freeing;
 use super::{log, sys};
 use crate::files::replace_file;
 use crate::recording::manifest::{self, Created, FileId, Found, MAX_BYTES, Verdict};
@@ -147,6 +148,9 @@ pub(crate) struct MadeList {
     failing: bool,
     /// Whether leaving the oldest entries out of the file was said.
     trimmed: bool,
+    /// Space the files last removed for `min_free_bytes` should free, while the disk
+    /// does not show it yet.
+    pub(super) freeing: Freeing,
 }
 
 impl MadeList {
@@ -175,6 +179,7 @@ impl MadeList {
             may_save,
             failing: false,
             trimmed: false,
+            freeing: Freeing::default(),
         };
         made.say_strangers();
         made
