@@ -163,7 +163,7 @@ pub(super) fn room_plan(
         .filter(|f| plan.remove.contains(&f.name))
         .map(|f| f.bytes)
         .sum();
-    made.freeing.removed(counted, removed, now);
+    made.freeing.removed(free, removed, now);
     plan
 }
 
@@ -178,26 +178,35 @@ const FREEING_WAIT: Duration = Duration::from_secs(30);
 /// until none was left.
 #[derive(Debug, Default)]
 pub(crate) struct Freeing {
-    /// What the disk should show once the space is back, and since when.
-    expected: Option<(u64, Instant)>,
+    /// The disk's free space when they were removed, their bytes, and when.
+    pending: Option<(u64, u64, Instant)>,
 }
 
 impl Freeing {
-    /// The free space to plan with when the disk shows `free` at `now`.
+    /// The free space to plan with when the disk shows `free` at `now`: with the space
+    /// being freed while the disk shows no more than before the removal (what was
+    /// written since is already less in `free`).
     fn counted(&mut self, free: u64, now: Instant) -> u64 {
-        match self.expected {
-            Some((expected, since)) if free < expected && now < since + FREEING_WAIT => expected,
+        match self.pending {
+            Some((before, bytes, since)) if free <= before && now < since + FREEING_WAIT => {
+                free.saturating_add(bytes)
+            }
             _ => {
-                self.expected = None;
+                self.pending = None;
                 free
             }
         }
     }
 
-    /// Files of `bytes` in all are removed at `now`, when `counted` bytes were free.
-    fn removed(&mut self, counted: u64, bytes: u64, now: Instant) {
+    /// Files of `bytes` in all are removed at `now`, when the disk showed `free`.
+    fn removed(&mut self, free: u64, bytes: u64, now: Instant) {
         if bytes > 0 {
-            self.expected = Some((counted.saturating_add(bytes), now));
+            let (free, bytes) = match self.pending {
+                // Still waiting for the last ones: theirs is not shown either.
+                Some((before, pending, _)) => (before.min(free), pending.saturating_add(bytes)),
+                None => (free, bytes),
+            };
+            self.pending = Some((free, bytes, now));
         }
     }
 }
@@ -229,20 +238,20 @@ mod tests {
     fn space_being_freed_counts_as_free_until_it_shows_or_the_wait_is_over() {
         let mut f = Freeing::default();
         let t0 = Instant::now();
+        let s = Duration::from_secs;
         assert_eq!(f.counted(100, t0), 100);
         f.removed(100, 50, t0);
-        // The disk still shows 100: planned with 150, so no second file goes.
-        assert_eq!(f.counted(100, t0 + Duration::from_secs(1)), 150);
-        // The space showed up: what the disk says from now on.
-        assert_eq!(f.counted(160, t0 + Duration::from_secs(2)), 160);
-        assert_eq!(f.counted(120, t0 + Duration::from_secs(3)), 120);
+        // The disk does not show it yet (and 10 bytes were written since): planned
+        // with the 50 to come, so no second file goes.
+        assert_eq!(f.counted(90, t0 + s(1)), 140);
+        // The space showed up (less what was written): the disk from now on.
+        assert_eq!(f.counted(135, t0 + s(2)), 135);
+        assert_eq!(f.counted(90, t0 + s(3)), 90);
         // It never shows: after the wait, the disk is believed again.
-        f.removed(120, 50, t0);
-        assert_eq!(
-            f.counted(120, t0 + FREEING_WAIT - Duration::from_secs(1)),
-            170
-        );
-        assert_eq!(f.counted(120, t0 + FREEING_WAIT), 120);
+        f.removed(90, 50, t0);
+        f.removed(90, 20, t0 + s(1));
+        assert_eq!(f.counted(90, t0 + FREEING_WAIT - s(1)), 160);
+        assert_eq!(f.counted(90, t0 + FREEING_WAIT + s(2)), 90);
     }
 
     /// An empty scratch directory named after `tag`, and a pattern of names in it.
