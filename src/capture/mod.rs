@@ -100,7 +100,11 @@ impl CaptureError {
         match self {
             CaptureError::Tlog(tlog::TlogError::BadMagic { offset, .. }) => *offset,
             CaptureError::Tlog(tlog::TlogError::Truncated { offset }) => *offset,
-            CaptureError::Pcap(pcap::PcapError::Truncated(at)) => *at,
+            CaptureError::Pcap(
+                pcap::PcapError::Truncated(at)
+                | pcap::PcapError::BadLength(at)
+                | pcap::PcapError::TooManyInterfaces(at),
+            ) => *at,
             CaptureError::Pcap(_) => 0,
         }
     }

@@ -44,6 +44,11 @@ pub enum PcapError {
     UnsupportedLinkType(u32),
     /// The file ends inside the record at this offset.
     Truncated(u64),
+    /// The pcapng block at this offset has a length no block can have.
+    BadLength(u64),
+    /// The pcapng section describes more than [`super::pcapng::MAX_INTERFACES`]
+    /// interfaces (the one at this offset is one too many).
+    TooManyInterfaces(u64),
 }
 
 impl std::fmt::Display for PcapError {
@@ -52,6 +57,14 @@ impl std::fmt::Display for PcapError {
             PcapError::NotPcap => write!(f, "not a pcap file"),
             PcapError::UnsupportedLinkType(t) => write!(f, "unsupported pcap link type {t}"),
             PcapError::Truncated(_) => write!(f, "file ends inside a packet record"),
+            PcapError::BadLength(_) => {
+                write!(f, "a block's length is not a multiple of 4 of at least 12")
+            }
+            PcapError::TooManyInterfaces(_) => write!(
+                f,
+                "more than {} interfaces in one section",
+                super::pcapng::MAX_INTERFACES
+            ),
         }
     }
 }
@@ -159,6 +172,10 @@ impl RecordFormat for Pcap {
 
     fn unit<'a>(dg: Self::Item<'a>) -> Unit<'a> {
         dg.unit()
+    }
+
+    fn passed_over(&self) -> u64 {
+        self.skipped
     }
 }
 

@@ -14,6 +14,9 @@ const BYTE_ORDER_MAGIC: u32 = 0x1A2B_3C4D;
 const OPT_IF_TSRESOL: u16 = 9;
 /// Bytes of the first Section Header Block that tell a pcapng file and its byte order.
 pub const FILE_HEADER_LEN: usize = 12;
+/// Most interfaces one section may describe: real captures have a few, and the list
+/// is kept in memory while the section is read.
+pub const MAX_INTERFACES: usize = 4096;
 
 /// True if `data` starts like a pcapng file.
 pub(crate) fn is_pcapng(data: &[u8]) -> bool {
@@ -156,15 +159,29 @@ impl PcapNg {
 impl RecordFormat for PcapNg {
     type Item<'a> = Datagram<'a>;
     type Error = PcapError;
-    const HEAD: usize = 8;
+    /// A block's type and length, and a Section Header Block's byte-order magic (a
+    /// block is at least 12 bytes long).
+    const HEAD: usize = 12;
 
     fn record_len(&self, head: &[u8], at: u64) -> Result<u64, PcapError> {
-        let b = self.block(head);
+        let mut b = self.block(head);
+        if head.get(..4) == Some(&SHB.to_le_bytes()) {
+            // A new section says its own byte order, its length included.
+            match head
+                .get(8..12)
+                .map(|m| u32::from_le_bytes([m[0], m[1], m[2], m[3]]))
+            {
+                Some(BYTE_ORDER_MAGIC) => b.big_endian = false,
+                Some(m) if m.swap_bytes() == BYTE_ORDER_MAGIC => b.big_endian = true,
+                Some(_) => return Err(PcapError::BadLength(at)),
+                None => return Err(PcapError::Truncated(at)),
+            }
+        }
         let (Some(_), Some(total)) = (b.u32_at(0), b.u32_at(4)) else {
             return Err(PcapError::Truncated(at));
         };
         if total < 12 || !total.is_multiple_of(4) {
-            return Err(PcapError::Truncated(at));
+            return Err(PcapError::BadLength(at));
         }
         Ok(u64::from(total))
     }
@@ -194,6 +211,9 @@ impl RecordFormat for PcapNg {
                 self.interfaces.clear();
             }
             IDB => match Self::interface(b, body, end.min(block.len())) {
+                Some(_) if self.interfaces.len() >= MAX_INTERFACES => {
+                    return Err(PcapError::TooManyInterfaces(at));
+                }
                 Some(i) => self.interfaces.push(i),
                 None => return Err(PcapError::Truncated(at)),
             },
@@ -227,6 +247,10 @@ impl RecordFormat for PcapNg {
     fn unit<'a>(dg: Self::Item<'a>) -> Unit<'a> {
         dg.unit()
     }
+
+    fn passed_over(&self) -> u64 {
+        self.skipped
+    }
 }
 
 /// Reader over a pcapng file held in memory.
@@ -244,22 +268,36 @@ impl<'a> Reader<'a> {
 mod tests {
     use super::*;
 
-    fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+    /// A block of `kind` around `body`, in the byte order `be` says.
+    fn block_in(be: bool, kind: u32, body: &[u8]) -> Vec<u8> {
+        let u32b = |v: u32| if be { v.to_be_bytes() } else { v.to_le_bytes() };
         let total = (12 + body.len().div_ceil(4) * 4) as u32;
-        let mut b = kind.to_le_bytes().to_vec();
-        b.extend(total.to_le_bytes());
+        let mut b = u32b(kind).to_vec();
+        b.extend(u32b(total));
         b.extend(body);
         b.resize(total as usize - 4, 0);
-        b.extend(total.to_le_bytes());
+        b.extend(u32b(total));
         b
+    }
+
+    fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+        block_in(false, kind, body)
     }
 
     /// A pcapng with one raw-IPv4 interface (µs resolution) and one EPB holding UDP `payload`.
     pub(crate) fn sample(payload: &[u8]) -> Vec<u8> {
-        let mut shb = BYTE_ORDER_MAGIC.to_le_bytes().to_vec();
-        shb.extend([1, 0, 0, 0]);
+        sample_in(false, payload)
+    }
+
+    /// [`sample`] in the byte order `be` says.
+    fn sample_in(be: bool, payload: &[u8]) -> Vec<u8> {
+        let u32b = |v: u32| if be { v.to_be_bytes() } else { v.to_le_bytes() };
+        let u16b = |v: u16| if be { v.to_be_bytes() } else { v.to_le_bytes() };
+        let mut shb = u32b(BYTE_ORDER_MAGIC).to_vec();
+        shb.extend(u16b(1));
+        shb.extend(u16b(0));
         shb.extend(u64::MAX.to_le_bytes());
-        let mut idb = (linktype::DLT_RAW as u16).to_le_bytes().to_vec();
+        let mut idb = u16b(linktype::DLT_RAW as u16).to_vec();
         idb.extend([0, 0, 0, 0, 0, 0]);
         let total = 28 + payload.len();
         let mut ip = vec![
@@ -288,17 +326,45 @@ mod tests {
         ip.extend([0x38, 0x96, 0x39, 0x14, (ulen >> 8) as u8, ulen as u8, 0, 0]);
         ip.extend(payload);
         let ts: u64 = 1_700_000_000_123_456;
-        let mut epb = 0u32.to_le_bytes().to_vec();
-        epb.extend(((ts >> 32) as u32).to_le_bytes());
-        epb.extend((ts as u32).to_le_bytes());
-        epb.extend((ip.len() as u32).to_le_bytes());
-        epb.extend((ip.len() as u32).to_le_bytes());
+        let mut epb = u32b(0).to_vec();
+        epb.extend(u32b((ts >> 32) as u32));
+        epb.extend(u32b(ts as u32));
+        epb.extend(u32b(ip.len() as u32));
+        epb.extend(u32b(ip.len() as u32));
         epb.extend(&ip);
-        let mut out = block(SHB, &shb);
-        out.extend(block(IDB, &idb));
-        out.extend(block(0xBAD, b"unknown block"));
-        out.extend(block(EPB, &epb));
+        let mut out = block_in(be, SHB, &shb);
+        out.extend(block_in(be, IDB, &idb));
+        out.extend(block_in(be, 0xBAD, b"unknown block"));
+        out.extend(block_in(be, EPB, &epb));
         out
+    }
+
+    #[test]
+    fn sections_of_either_byte_order_follow_each_other() {
+        for first_be in [false, true] {
+            let data = [sample_in(first_be, b"one"), sample_in(!first_be, b"two")].concat();
+            let got: Vec<Vec<u8>> = Reader::new(&data)
+                .expect("pcapng")
+                .map(|d| d.expect("datagram").payload.to_vec())
+                .collect();
+            assert_eq!(got, [b"one".to_vec(), b"two".to_vec()]);
+        }
+    }
+
+    #[test]
+    fn a_section_describes_a_bounded_number_of_interfaces() {
+        let mut data = sample(b"x");
+        let idb = block(IDB, &[1, 0, 0, 0, 0, 0, 0, 0]);
+        for _ in 0..MAX_INTERFACES {
+            data.extend(&idb);
+        }
+        let got: Vec<_> = Reader::new(&data).expect("pcapng").collect();
+        assert!(got[0].is_ok(), "{got:?}");
+        assert!(
+            matches!(got.last(), Some(Err(PcapError::TooManyInterfaces(_)))),
+            "{:?}",
+            got.last()
+        );
     }
 
     #[test]

@@ -39,6 +39,12 @@ pub trait RecordFormat {
 
     /// An item as a unit of MAVLink bytes.
     fn unit<'a>(item: Self::Item<'a>) -> Unit<'a>;
+
+    /// Records passed over so far as carrying nothing this reader reads (packets that
+    /// are not IPv4/UDP, or of a link type it does not know).
+    fn passed_over(&self) -> u64 {
+        0
+    }
 }
 
 /// Iterator over the items of a capture held in memory. After an error it stops.

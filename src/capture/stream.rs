@@ -33,6 +33,9 @@ pub struct End {
     pub error: Option<CaptureError>,
     /// The [`Units`] asked to stop.
     pub stopped: bool,
+    /// Packets of a pcap or pcapng capture passed over: not IPv4/UDP, or of a link
+    /// type this reader does not know.
+    pub passed_over: u64,
 }
 
 /// A capture being read from `R`, its format told from its first bytes.
@@ -60,6 +63,7 @@ impl<R: Read> Capture<R> {
     /// problem stops the reading, or `units` asks to stop. Errors are those of the input.
     pub fn read(mut self, units: &mut impl Units) -> io::Result<End> {
         let w = &mut self.window;
+        let mut passed_over = 0;
         let outcome = match self.format {
             Format::Raw => raw(w, units),
             Format::Tlog => records(w, &mut tlog::Tlog, units),
@@ -69,7 +73,9 @@ impl<R: Read> Capture<R> {
                 match pcap::Pcap::from_header(w.bytes()) {
                     Ok(mut format) => {
                         w.consume(pcap::GLOBAL_HEADER_LEN, pcap::GLOBAL_HEADER_LEN as u64);
-                        records(w, &mut format, units)
+                        let outcome = records(w, &mut format, units);
+                        passed_over = format.passed_over();
+                        outcome
                     }
                     Err(e) => Ok(Outcome::Failed(e.into())),
                 }
@@ -77,7 +83,11 @@ impl<R: Read> Capture<R> {
             Format::PcapNg => {
                 w.fill_to(pcapng::FILE_HEADER_LEN, &mut || units.waiting())?;
                 match pcapng::PcapNg::from_header(w.bytes()) {
-                    Ok(mut format) => records(w, &mut format, units),
+                    Ok(mut format) => {
+                        let outcome = records(w, &mut format, units);
+                        passed_over = format.passed_over();
+                        outcome
+                    }
                     Err(e) => Ok(Outcome::Failed(e.into())),
                 }
             }
@@ -87,16 +97,19 @@ impl<R: Read> Capture<R> {
                 bytes: w.offset(),
                 error: None,
                 stopped: false,
+                passed_over,
             },
             Outcome::Stopped => End {
                 bytes: w.offset(),
                 error: None,
                 stopped: true,
+                passed_over,
             },
             Outcome::Failed(error) => End {
                 bytes: w.drain(&mut || units.waiting())?,
                 error: Some(error),
                 stopped: false,
+                passed_over,
             },
         })
     }

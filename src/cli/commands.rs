@@ -184,6 +184,13 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
         };
         if opts.check {
             match &report.problem {
+                None if report.passed_over > 0 => {
+                    let _ = writeln!(
+                        out,
+                        "{file}: valid ({} frames; {} packets passed over: not IPv4/UDP, or of a link type not read)",
+                        report.frames, report.passed_over
+                    );
+                }
                 None => {
                     let _ = writeln!(out, "{file}: valid ({} frames)", report.frames);
                 }
@@ -196,6 +203,15 @@ fn run_inspect(args: &[String], out: &mut dyn Write, err: &mut dyn Write) -> Res
             let summary: &mut dyn Write = if opts.json { &mut *err } else { &mut *out };
             inspect::write_summary_in(file, &report, &opts.dialect, summary)
                 .map_err(|e| format!("writing output: {e}"))?;
+            // The rest of the file was not read: the listing is not the whole capture.
+            if let Some(p) = &report.read_error {
+                let _ = writeln!(
+                    err,
+                    "error: {file}: reading stopped at byte {}: {}; what follows it was not read",
+                    p.offset, p.reason
+                );
+                code = 1;
+            }
         }
     }
     Ok(code)

@@ -74,6 +74,12 @@ pub struct Report {
     pub per_source: BTreeMap<Address, u64>,
     /// The first problem found, if any (`None` means the file is a valid sequence).
     pub problem: Option<Problem>,
+    /// What stopped the reading of the capture before its end (a damaged record), if
+    /// anything: the rest of the file was not read.
+    pub read_error: Option<Problem>,
+    /// Packets of a pcap or pcapng capture passed over: not IPv4/UDP, or of a link type
+    /// this reader does not know.
+    pub passed_over: u64,
 }
 
 /// Why inspecting a capture stopped short.
@@ -353,14 +359,20 @@ pub fn inspect(input: impl Read, opts: &Options, out: &mut dyn Write) -> Result<
     }
     let mut report = sink.report;
     report.bytes = end.bytes;
+    report.passed_over = end.passed_over;
     if let Some(e) = end.error {
-        let offset = e.offset();
-        if report.problem.as_ref().is_none_or(|p| p.offset > offset) {
-            report.problem = Some(Problem {
-                offset,
-                reason: e.to_string(),
-            });
+        let stop = Problem {
+            offset: e.offset(),
+            reason: e.to_string(),
+        };
+        if report
+            .problem
+            .as_ref()
+            .is_none_or(|p| p.offset > stop.offset)
+        {
+            report.problem = Some(stop.clone());
         }
+        report.read_error = Some(stop);
     }
     Ok(report)
 }
@@ -384,6 +396,13 @@ pub fn write_summary_in(
         report.format, report.bytes, report.frames, report.selected
     )?;
     writeln!(out, "  parser: {s}")?;
+    if report.passed_over > 0 {
+        writeln!(
+            out,
+            "  passed over: {} packets (not IPv4/UDP, or of a link type not read)",
+            report.passed_over
+        )?;
+    }
     if !report.per_message.is_empty() {
         writeln!(out, "  messages:")?;
         for (id, n) in &report.per_message {

@@ -30,10 +30,15 @@ impl Target {
     /// Parses `udp:HOST:PORT` or `serial:DEVICE:BAUD` (the device may contain `:`).
     pub fn parse(text: &str) -> Result<Self, String> {
         if let Some(rest) = text.strip_prefix("udp:") {
-            let addr = rest
+            let found: Vec<SocketAddr> = rest
                 .to_socket_addrs()
                 .map_err(|e| format!("cannot resolve '{rest}': {e}"))?
-                .next()
+                .collect();
+            // An IPv4 address first when the name has both (`localhost` gives ::1 first
+            // on many systems): routers and ground stations listen on IPv4 by default.
+            let addr = (found.iter().find(|a| a.is_ipv4()))
+                .or(found.first())
+                .copied()
                 .ok_or_else(|| format!("'{rest}' resolves to no address"))?;
             return Ok(Target::Udp(addr));
         }

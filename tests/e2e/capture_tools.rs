@@ -259,6 +259,16 @@ fn bad_input_gives_a_clear_message_and_exit_code() {
         "{}",
         text(&out.stdout)
     );
+    // Listed, it says where the reading stopped, and fails: the listing is not the
+    // whole capture.
+    let out = mavtables(&["inspect", &cut.display().to_string()]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr)
+            .contains("cut.tlog: reading stopped at byte 969: file ends inside a record"),
+        "{}",
+        text(&out.stderr)
+    );
 
     // A pcap whose records are not UDP (TCP instead) yields no frames, no panic.
     let mut pcap = read_data("flight/rural.pcap");
@@ -266,11 +276,22 @@ fn bad_input_gives_a_clear_message_and_exit_code() {
     assert_eq!(pcap[first_proto], 17);
     pcap[first_proto] = 6;
     let tcp = scratch.dir.join("tcp.pcap");
-    std::fs::write(&tcp, &pcap[..24 + 16 + 73]).expect("write");
+    std::fs::write(&tcp, &pcap[..24 + 16 + 76]).expect("write");
     let out = mavtables(&["inspect", &tcp.display().to_string()]);
     assert!(out.status.success());
     assert!(
-        text(&out.stdout).contains(": pcap (113 bytes): 0 frames"),
+        text(&out.stdout).contains(": pcap (116 bytes): 0 frames"),
+        "{}",
+        text(&out.stdout)
+    );
+    assert!(
+        text(&out.stdout).contains("passed over: 1 packets (not IPv4/UDP"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = mavtables(&["inspect", "--check", &tcp.display().to_string()]);
+    assert!(
+        text(&out.stdout).contains("valid (0 frames; 1 packets passed over"),
         "{}",
         text(&out.stdout)
     );

@@ -261,7 +261,7 @@ fn state(link: &Value, lost: &HashMap<String, u64>) -> State {
     let gaps: u64 = list(link.get("addresses"))
         .iter()
         .filter_map(|a| lost.get(a.as_str()?))
-        .sum();
+        .fold(0u64, |total, n| total.saturating_add(*n));
     if gaps > 0 {
         return State::Gaps;
     }
@@ -290,7 +290,7 @@ fn drop_total(link: &Value) -> u64 {
     DROP_REASONS
         .iter()
         .filter_map(|(key, _)| link.get("drops")?.get(*key)?.as_u64())
-        .sum()
+        .fold(0, u64::saturating_add)
 }
 
 /// How busy `link` is: frames per second in and out together.
@@ -401,6 +401,18 @@ fn uptime(v: Option<&Value>) -> String {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn counters_near_the_top_of_u64_add_up_without_overflow() {
+        let link = json!({
+            "drops": {"filter_rejected": u64::MAX, "no_route": 1, "queue_full": 0},
+            "addresses": ["1.1", "2.1"],
+        });
+        assert_eq!(drop_total(&link), u64::MAX);
+        let lost = HashMap::from([("1.1".to_string(), u64::MAX), ("2.1".to_string(), 5)]);
+        let quiet = json!({"addresses": ["1.1", "2.1"]});
+        assert!(matches!(state(&quiet, &lost), State::Gaps));
+    }
 
     #[test]
     fn the_contracts_example() {
