@@ -54,6 +54,8 @@ pub const MAX_MESSAGE: usize = 64 * 1024;
 pub const HANDSHAKE_LIMIT: Duration = Duration::from_secs(5);
 /// Messages read per wake-up before the loop gets a turn to send.
 const READS_PER_TURN: usize = 16;
+/// Bytes read per wake-up at most, whatever they hold (see [`Socket`]).
+const READ_BUDGET: usize = 64 * 1024;
 /// Frames taken from the core per write (each its own message), written out before
 /// more are taken.
 const FRAMES_PER_WRITE: usize = 16;
@@ -106,21 +108,54 @@ impl Callback for OriginCheck {
 /// The connection's socket as tungstenite holds it. The driver keeps a handle of its
 /// own: a failed handshake consumes tungstenite's, and the driver still answers and
 /// ends the connection on the socket, whose descriptor the loop watches.
-struct Socket(Rc<TcpStream>);
+///
+/// While a turn reads messages, its reads are held to a budget of bytes: tungstenite's
+/// `read` returns only with a whole message or when the socket has nothing more, so a
+/// peer that streams frames which never end a message (empty continuation frames
+/// grow no message) would otherwise keep the loop in one call for as long as it sends.
+/// Once the budget is spent a read answers "would block", and the turn ends with more
+/// to read.
+struct Socket {
+    stream: Rc<TcpStream>,
+    /// Bytes the current turn may still read (`None`: no turn is counting).
+    budget: Option<usize>,
+    /// A read was refused because the budget was spent.
+    spent: bool,
+}
+
+impl Socket {
+    fn new(stream: Rc<TcpStream>) -> Self {
+        Socket {
+            stream,
+            budget: None,
+            spent: false,
+        }
+    }
+}
 
 impl Read for Socket {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        (&*self.0).read(buf)
+        let Some(left) = self.budget else {
+            return (&*self.stream).read(buf);
+        };
+        if left == 0 {
+            self.spent = true;
+            return Err(io::ErrorKind::WouldBlock.into());
+        }
+        let n = buf.len().min(left);
+        let got = (&*self.stream).read(&mut buf[..n])?;
+        self.budget = Some(left - got);
+        Ok(got)
     }
 }
 
 impl Write for Socket {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        (&*self.0).write(buf)
+        (&*self.stream).write(buf)
     }
 
     fn flush(&mut self) -> io::Result<()> {
-        (&*self.0).flush()
+        (&*self.stream).flush()
     }
 }
 
@@ -277,7 +312,7 @@ impl WebSocketDriver {
     fn handshake(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         let (result, socket) = match std::mem::replace(&mut self.state, State::Gone) {
             State::Accepted(socket, check) => {
-                let theirs = Socket(Rc::clone(&socket));
+                let theirs = Socket::new(Rc::clone(&socket));
                 let result = tungstenite::accept_hdr_with_config(theirs, check, Some(ws_config()));
                 (result, socket)
             }
@@ -388,8 +423,31 @@ impl WebSocketDriver {
         }
     }
 
-    /// Reads what an open connection has (a bounded number of messages).
+    /// Reads what an open connection has: a bounded number of messages, and of bytes
+    /// (see [`Socket`]); `More` when a bound ended the turn.
     fn read(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
+        self.count_reads(Some(READ_BUDGET));
+        let progress = self.read_messages(engine, now);
+        let spent = self.count_reads(None);
+        match progress {
+            Progress::Done if spent => Progress::More,
+            other => other,
+        }
+    }
+
+    /// Starts (`Some`) or ends (`None`) a turn's budget of bytes read; whether the turn
+    /// that ends spent it.
+    fn count_reads(&mut self, budget: Option<usize>) -> bool {
+        let (State::Open(ws) | State::Closing(ws, _)) = &mut self.state else {
+            return false;
+        };
+        let socket = ws.get_mut();
+        socket.budget = budget;
+        std::mem::take(&mut socket.spent)
+    }
+
+    /// Reads up to [`READS_PER_TURN`] messages.
+    fn read_messages(&mut self, engine: &mut Engine, now: Timestamp) -> Progress {
         let id = self.interface;
         for _ in 0..READS_PER_TURN {
             let State::Open(ws) = &mut self.state else {
@@ -400,8 +458,22 @@ impl WebSocketDriver {
                 Ok(Message::Text(text)) => engine.stream_junk(id, text.len()),
                 // Pings are answered by tungstenite; pongs need nothing.
                 Ok(Message::Ping(_) | Message::Pong(_) | Message::Frame(_)) => {}
-                // tungstenite queued the reply.
-                Ok(Message::Close(_)) => return self.end(engine, now, true),
+                // tungstenite queued the reply. A code other than a normal end is an
+                // error (said, counted); tungstenite gives one the protocol does not
+                // allow as 1002, which it answers too.
+                Ok(Message::Close(frame)) => {
+                    if let Some(f) =
+                        frame.filter(|f| !matches!(f.code, CloseCode::Normal | CloseCode::Away))
+                    {
+                        let why = format!(
+                            "closed by the peer with code {}: {}",
+                            u16::from(f.code),
+                            f.reason.as_str().escape_debug()
+                        );
+                        engine.on_stream_failed(id, &why);
+                    }
+                    return self.end(engine, now, true);
+                }
                 Err(WsError::Io(e)) if e.kind() == io::ErrorKind::WouldBlock => {
                     return match self.failed.take() {
                         Some(e) => self.lose(engine, now, Some(format!("send failed: {e}"))),
@@ -554,7 +626,7 @@ impl Driver for WebSocketDriver {
             State::Closing(ws, until) => {
                 // A peer blocked in a send reads the Close only once that send is done.
                 // One that ended its sending side may still read: the Close still goes.
-                if tcp::drain(&ws.get_ref().0) == Input::Failed {
+                if tcp::drain(&ws.get_ref().stream) == Input::Failed {
                     return true;
                 }
                 match ws.flush() {
@@ -570,7 +642,7 @@ impl Driver for WebSocketDriver {
                     }
                     Err(_) => return true,
                 }
-                let socket = Rc::clone(&ws.get_ref().0);
+                let socket = Rc::clone(&ws.get_ref().stream);
                 if socket.shutdown(Shutdown::Write).is_err() {
                     return true;
                 }

@@ -254,6 +254,23 @@ fn an_oversized_message_closes_the_connection() {
         Some(1002),
         "said why (protocol)"
     );
+    counters_until(&mut router, "two I/O errors", |c| {
+        c.interface(&label).is_some_and(|i| i.io_errors == 2)
+    });
+    // A Close with a code the protocol does not allow (999, masked with a zero key) is
+    // the peer's error too: answered 1002, said and counted.
+    let mut odd = ws_join(&mut router, port, 203);
+    odd.get_mut()
+        .write_all(&[0x88, 0x82, 0, 0, 0, 0, 0x03, 0xE7])
+        .expect("write");
+    assert_eq!(close_code(&mut odd, 5 * SECOND), Some(1002));
+    router.err.wait_for(
+        "closed by the peer with code 1002: Protocol violation",
+        10 * SECOND,
+    );
+    counters_until(&mut router, "three I/O errors", |c| {
+        c.interface(&label).is_some_and(|i| i.io_errors == 3)
+    });
     router.stop();
 }
 
@@ -815,4 +832,60 @@ fn a_client_is_told_the_router_goes_away() {
     let told = std::thread::spawn(move || close_code(&mut ws, 5 * SECOND));
     router.stop();
     assert_eq!(told.join().expect("client"), Some(1001));
+}
+
+/// A client that streams frames which never end a message (empty continuation frames
+/// add nothing to it, so no size limit is reached) cannot hold the router in one read:
+/// the other links are served while it sends.
+#[test]
+fn a_message_that_never_ends_does_not_hold_the_router() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let s = Scratch::new("ws-endless");
+    let (mut router, udp, port) = router(&s, "", "");
+    let v = vehicle(&mut router, udp, 1);
+    let ground = vehicle(&mut router, udp, 2);
+    ground
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .expect("timeout");
+    let ws = ws_client(port);
+    let mut raw = ws.get_ref().try_clone().expect("clone");
+    raw.set_write_timeout(Some(Duration::from_millis(100)))
+        .expect("timeout");
+    // A binary frame that is not the last of its message, then continuation frames,
+    // each empty and masked (with a zero key), for as long as the test runs.
+    raw.write_all(&[0x02, 0x80, 0, 0, 0, 0])
+        .expect("first frame");
+    let stop = Arc::new(AtomicBool::new(false));
+    let flood = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let chunk = [0x00u8, 0x80, 0, 0, 0, 0].repeat(10_000);
+            let until = Instant::now() + 20 * SECOND;
+            while !stop.load(Ordering::Relaxed) && Instant::now() < until {
+                let _ = raw.write(&chunk);
+            }
+        })
+    };
+    // While it floods: the vehicle's frames, and how many reach the ground station
+    // before the flood ends.
+    let mut buf = [0u8; 512];
+    let mut during = 0;
+    let start = Instant::now();
+    let mut sent = 0u8;
+    while start.elapsed() < 3 * SECOND && during < 20 {
+        v.send(&attitude(1, sent)).expect("send");
+        sent = sent.wrapping_add(1);
+        if ground.recv(&mut buf).is_ok() {
+            during += 1;
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    flood.join().expect("flood");
+    assert!(
+        during >= 20,
+        "{during} of {sent} frames came through during the flood"
+    );
+    drop(ws);
+    router.stop();
 }
