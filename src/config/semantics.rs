@@ -53,6 +53,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
     let mut unknown_messages = UnknownMessages::Reject;
     let mut default_action = DefaultAction::Reject;
     let mut interfaces = Vec::new();
+    let mut zenoh_prefixes: Vec<(usize, String)> = Vec::new();
     // What the interfaces so far hold, with the line of their keyword, to catch two
     // claiming one socket or device.
     let mut claimed: Vec<(Claim, usize)> = Vec::new();
@@ -119,6 +120,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
             Item::Zenoh { keyword, settings } => {
                 if let Some(z) = super::zenoh_block::check(ast, *keyword, settings, &mut cx.errors)
                 {
+                    zenoh_prefixes.push((cx.line(*keyword), z.prefix.clone()));
                     interfaces.push(Interface::Zenoh(z));
                 }
             }
@@ -275,6 +277,7 @@ pub fn analyse_in(ast: &Ast<'_>, dir: &Path) -> Result<Loaded, Vec<Diagnostic>> 
         ));
     }
     warnings.extend(super::paths::lonely_groups(&groups));
+    warnings.extend(super::zenoh_block::overlapping(&zenoh_prefixes));
     cx.find_cycles();
     if !cx.errors.is_empty() {
         return Err(cx.errors);

@@ -135,6 +135,31 @@ fn located(span: Span, e: TextError) -> Diagnostic {
     }
 }
 
+/// Warnings for `zenoh` blocks (by line, with their prefixes) whose prefixes are the
+/// same or one inside the other: on one Zenoh network, each would hear what the other
+/// publishes and pass it back, so frames would go round between them. Blocks on
+/// separate networks may share a prefix, so this is not an error.
+pub(super) fn overlapping(blocks: &[(usize, String)]) -> Vec<String> {
+    let inside = |a: &str, b: &str| {
+        b.strip_prefix(a)
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with('/'))
+    };
+    let mut said = Vec::new();
+    for (i, (line_a, a)) in blocks.iter().enumerate() {
+        for (line_b, b) in &blocks[i + 1..] {
+            if inside(a, b) || inside(b, a) {
+                said.push(format!(
+                    "the zenoh blocks on lines {line_a} and {line_b} publish under '{a}' and '{b}', \
+                     one within the other: on one Zenoh network each hears what the other \
+                     publishes and frames go round between them; give them prefixes apart \
+                     unless their networks are separate"
+                ));
+            }
+        }
+    }
+    said
+}
+
 /// A key prefix: chunks separated by `/`, none empty, with no wildcard or reserved
 /// character of Zenoh key expressions (`*`, `$`, `?`, `#`).
 fn key_prefix(text: &str) -> Result<(), TextError> {
@@ -256,6 +281,23 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn blocks_whose_prefixes_nest_are_warned_of() {
+        let blocks = |p: &[&str]| -> Vec<(usize, String)> {
+            p.iter()
+                .enumerate()
+                .map(|(i, p)| (i + 1, p.to_string()))
+                .collect()
+        };
+        let said = super::overlapping(&blocks(&["fleet", "fleet/all", "fleetx", "other"]));
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(said[0].starts_with(
+            "the zenoh blocks on lines 1 and 2 publish under 'fleet' and 'fleet/all'"
+        ));
+        assert_eq!(super::overlapping(&blocks(&["a/b", "a/b"])).len(), 1);
+        assert!(super::overlapping(&blocks(&["a/b", "a/c", "b"])).is_empty());
     }
 
     /// Each mistake is located (in any build: the checks run either way).
