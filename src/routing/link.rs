@@ -132,6 +132,17 @@ impl Link {
         self.pool.learn(address, now)
     }
 
+    /// Learns `address`, heard at `now` on another link of this link's group (the same
+    /// path to it), without taking it as a sign that this link lives: a UDP remote that
+    /// fell silent still goes (see [`Link::is_stale`]) however much its group hears.
+    pub(crate) fn learn_for_group(
+        &mut self,
+        address: crate::address::Address,
+        now: Timestamp,
+    ) -> bool {
+        self.pool.learn(address, now)
+    }
+
     /// True for a UDP link whose pool has been empty for the expiry time at `now`: its
     /// last address expired at `last_learned + expiry`, so it goes once `now` is more than
     /// twice the expiry after the last learning (present at exactly that time, gone after).

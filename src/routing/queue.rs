@@ -84,18 +84,27 @@ impl PacketQueue {
         }
     }
 
+    /// Whether a packet of `cost` bytes and `priority` would be queued (making room
+    /// within this queue by dropping what ranks below it), not dropped.
+    pub(crate) fn would_take(&self, cost: usize, priority: i32) -> bool {
+        if self.bytes.saturating_add(cost) <= self.capacity {
+            return true;
+        }
+        let ahead: usize = self
+            .buckets
+            .iter()
+            .filter(|(p, _)| *p > priority)
+            .map(|(_, b)| b.bytes)
+            .sum();
+        ahead.saturating_add(cost) <= self.capacity
+    }
+
     /// Queues `packet` with `priority`, dropping lower-priority or older packets if full.
     pub fn push(&mut self, packet: Packet, priority: i32) -> PushOutcome {
         let cost = Self::cost_of(&packet);
         let mut evicted = 0;
         if self.bytes.saturating_add(cost) > self.capacity {
-            let ahead: usize = self
-                .buckets
-                .iter()
-                .filter(|(p, _)| *p > priority)
-                .map(|(_, b)| b.bytes)
-                .sum();
-            if ahead.saturating_add(cost) > self.capacity {
+            if !self.would_take(cost, priority) {
                 self.dropped += 1;
                 return PushOutcome::Dropped;
             }

@@ -526,11 +526,14 @@ impl Router {
         self.enqueue(i, packet, priority, out);
     }
 
-    /// Queues `packet` on link `i`, within the link's and the shared capacity.
+    /// Queues `packet` on link `i`, within the link's and the shared capacity. Other
+    /// links' packets are dropped for shared room only for a packet the link's own
+    /// queue takes.
     fn enqueue(&mut self, i: usize, packet: Packet, priority: i32, out: &mut Output) {
         let cost = PacketQueue::cost_of(&packet);
         if self.queued_bytes.saturating_add(cost) > self.options.total_queue_capacity
-            && !self.make_room(cost, priority, out)
+            && (!self.links[i].queue.would_take(cost, priority)
+                || !self.make_room(cost, priority, out))
         {
             self.links[i].queue.count_drop();
             out.queue_drops += 1;

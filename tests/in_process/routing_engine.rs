@@ -552,3 +552,48 @@ fn a_remote_sending_from_port_0_never_becomes_a_link() {
         e.report()
     );
 }
+
+/// A TCP client that has not connected yet is down from the start: what was queued for
+/// it longer than the limit is stale when it first connects, as after a loss.
+#[test]
+fn a_tcp_client_that_was_never_up_forgets_what_went_stale() {
+    let mut e = engine(ACCEPT);
+    let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+    let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    e.stream_open_failed(client, Timestamp::ZERO, &"connection refused");
+    let queued = |e: &mut Engine, at: Timestamp| {
+        let mut q = VecDeque::new();
+        e.poll_transmit(client, at, 100, &mut q);
+        q.len()
+    };
+    e.handle_datagram(
+        udp,
+        peer(1),
+        &frame("ATTITUDE", "7.1", None),
+        Timestamp::from_secs(1),
+    );
+    let later = Timestamp::from_secs(60);
+    e.stream_opened(client, later);
+    assert_eq!(
+        queued(&mut e, later),
+        0,
+        "59 s old telemetry sent on first connect"
+    );
+    // One that connects soon after the start keeps what was queued meanwhile.
+    let mut e = engine(ACCEPT);
+    let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+    let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, Timestamp::ZERO);
+    e.handle_timeout(Timestamp::ZERO);
+    e.handle_datagram(
+        udp,
+        peer(1),
+        &frame("ATTITUDE", "7.1", None),
+        Timestamp::ZERO,
+    );
+    let soon = Timestamp::from_millis(100);
+    e.stream_opened(client, soon);
+    let mut q = VecDeque::new();
+    e.poll_transmit(client, soon, 100, &mut q);
+    assert_eq!(q.len(), 1);
+}

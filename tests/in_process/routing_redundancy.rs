@@ -238,3 +238,41 @@ fn a_reload_takes_the_new_groups_for_links_already_there() {
     );
     assert_eq!(groups(&e), vec![true, true]);
 }
+
+/// A UDP remote of a grouped server that fell silent (a radio bridge that restarted on a
+/// new port) still expires, however much the group hears meanwhile: it would otherwise
+/// hold a place of `max_peers` for good.
+#[test]
+fn a_grouped_servers_silent_remote_still_expires() {
+    let (mut e, ports) = start(
+        "udp { port 14550; group radio; max_peers 2; }\n\
+         udp { port 14551; group radio; }\n\
+         default_action accept;\n",
+    );
+    let radio = ports[&14550];
+    e.handle_datagram(
+        radio,
+        peer(1),
+        &heartbeat("1.1", 0),
+        Timestamp::from_secs(1),
+    );
+    for s in 2..=400u64 {
+        let now = Timestamp::from_secs(s);
+        e.handle_datagram(radio, peer(2), &heartbeat("1.1", s as u8), now);
+        e.handle_timeout(now);
+    }
+    assert!(
+        !e.router().links().any(|l| l.name() == "127.0.0.1:1"),
+        "silent 399 s, still a link"
+    );
+    e.handle_datagram(
+        radio,
+        peer(3),
+        &heartbeat("1.1", 0),
+        Timestamp::from_secs(401),
+    );
+    assert!(
+        e.router().links().any(|l| l.name() == "127.0.0.1:3"),
+        "refused as over max_peers"
+    );
+}

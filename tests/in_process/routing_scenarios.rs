@@ -418,3 +418,34 @@ fn shared_queue_capacity_keeps_higher_priorities() {
     assert_eq!(net.drain("other"), Vec::<String>::new());
     assert_eq!(net.router.queued_bytes(), 0);
 }
+
+/// When the shared capacity is full, other links' packets are dropped for room only for
+/// a packet the link's own queue takes: one its full queue refuses anyway (full of
+/// higher priorities) costs no other link anything.
+#[test]
+fn a_packet_its_own_full_queue_refuses_evicts_nothing_elsewhere() {
+    // FILE_TRANSFER_PROTOCOL frames: 266 bytes + 32 in the queues' reckoning.
+    let cost = 266 + 32;
+    let options = RouterOptions {
+        queue_capacity: 2 * cost,
+        total_queue_capacity: 4 * cost,
+        ..RouterOptions::default()
+    };
+    let mut net = Net::with_options(
+        "chain default {\n    reject if HEARTBEAT;\n    accept with priority 5 if from 2.1 to 9.9;\n    accept;\n}\n",
+        options,
+    );
+    net.heartbeat("a", "9.9");
+    net.heartbeat("b", "8.8");
+    for _ in 0..2 {
+        net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.1", Some("9.9")); // a, priority 5
+        net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.1", Some("8.8")); // b, priority 0
+    }
+    assert_eq!(net.router.queued_bytes(), 4 * cost);
+    // For a, at priority 0: a's queue is full of priority 5, so it is dropped...
+    net.send("sender", "FILE_TRANSFER_PROTOCOL", "2.2", Some("9.9"));
+    assert_eq!(net.drops, 1);
+    // ...and b keeps what it had.
+    assert_eq!(net.drain("b").len(), 2);
+    assert_eq!(net.drain("a").len(), 2);
+}

@@ -88,7 +88,8 @@ impl Engine {
     /// Adds a stream client (a TCP client) named `label` whose one link is `link_name`:
     /// opened at once, reconnected at once after a loss and then with a backoff capped
     /// at one second, forever; what was queued while it was down longer than
-    /// [`FORGET_AFTER`] is dropped when it comes back.
+    /// [`FORGET_AFTER`] is dropped when it comes back, or when it first connects (it is
+    /// down from `now` until then).
     pub fn add_stream_client(
         &mut self,
         label: String,
@@ -104,7 +105,10 @@ impl Engine {
                 link,
                 Connection::new(now),
                 None,
-                Reopen::client(FORGET_AFTER),
+                Reopen {
+                    down_since: Some(now),
+                    ..Reopen::client(FORGET_AFTER)
+                },
             ),
         ))
     }

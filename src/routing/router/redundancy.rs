@@ -79,7 +79,7 @@ impl Router {
         };
         for i in 0..self.links.len() {
             let member = &mut self.links[i];
-            if i != si && member.group == Some(group) && member.learn(src, now) {
+            if i != si && member.group == Some(group) && member.learn_for_group(src, now) {
                 let id = member.id();
                 self.index_system(src.system, id);
             }
