@@ -62,7 +62,7 @@ pub use interface::InterfaceId;
 pub use link::{GroupId, Link, LinkId, LinkKind};
 pub use notice::Notice;
 pub use pacer::{Pace, Pacer};
-pub use pool::AddressPool;
+pub use pool::{AddressPool, MAX_ADDRESSES};
 pub use queue::{Packet, PacketQueue, PushOutcome};
 pub use router::{Output, Router, RouterOptions};
 

@@ -7,6 +7,10 @@ use crate::time::Timestamp;
 
 /// How long a learned address stays without being heard from (the original's 120 s).
 pub(crate) const DEFAULT_EXPIRY: Duration = Duration::from_secs(120);
+/// Most addresses one link keeps: far beyond a fleet behind one link, and a bound on
+/// what a peer forging source addresses makes every broadcast cost (each address of a
+/// link is a filter check). Beyond it the address heard least recently gives way.
+pub const MAX_ADDRESSES: usize = 1024;
 
 #[derive(Debug, Clone, Copy)]
 struct Entry {
@@ -54,12 +58,31 @@ impl AddressPool {
                 !was_live
             }
             None => {
+                if self.entries.len() >= MAX_ADDRESSES {
+                    self.make_room(now);
+                }
                 self.entries.push(Entry {
                     address,
                     last_seen: Some(now),
                 });
                 true
             }
+        }
+    }
+
+    /// Frees a place in a full pool: the expired addresses go, or else the one heard
+    /// least recently (preloaded ones stay).
+    #[cold]
+    fn make_room(&mut self, now: Timestamp) {
+        self.prune(now);
+        if self.entries.len() < MAX_ADDRESSES {
+            return;
+        }
+        let oldest = (self.entries.iter().enumerate())
+            .filter_map(|(i, e)| Some((e.last_seen?, i)))
+            .min();
+        if let Some((_, i)) = oldest {
+            self.entries.remove(i);
         }
     }
 
@@ -124,6 +147,26 @@ impl Default for AddressPool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_full_pool_gives_up_the_address_heard_least_recently() {
+        let mut p = AddressPool::default();
+        p.preload(A);
+        let t = |s| Timestamp::from_secs(s);
+        for n in 0..MAX_ADDRESSES as u16 - 1 {
+            let a = Address::new(2 + (n / 200) as u8, 1 + (n % 200) as u8);
+            p.learn(a, t(1 + u64::from(n % 3)));
+        }
+        let first = Address::new(2, 1); // heard at 1 s, with a third of the others
+        p.learn(first, t(5));
+        assert_eq!(p.addresses(t(5)).count(), MAX_ADDRESSES);
+        let new = Address::new(200, 1);
+        assert!(p.learn(new, t(6)));
+        assert_eq!(p.addresses(t(6)).count(), MAX_ADDRESSES);
+        assert!(p.contains(A, t(6)), "preloaded");
+        assert!(p.contains(first, t(6)) && p.contains(new, t(6)));
+        assert!(!p.contains(Address::new(2, 4), t(6)), "heard at 1 s: gone");
+    }
 
     const A: Address = Address::new(1, 1);
     const B: Address = Address::new(2, 1);

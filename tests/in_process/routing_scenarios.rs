@@ -449,3 +449,21 @@ fn a_packet_its_own_full_queue_refuses_evicts_nothing_elsewhere() {
     assert_eq!(net.drain("b").len(), 2);
     assert_eq!(net.drain("a").len(), 2);
 }
+
+/// A peer forging source addresses cannot make one link hold thousands of them: a
+/// link keeps at most `MAX_ADDRESSES`, so what one broadcast costs in filter checks
+/// for that link stays bounded.
+#[test]
+fn forged_sources_do_not_multiply_the_cost_of_each_broadcast() {
+    let mut net = Net::new("chain default { reject if HEARTBEAT; accept; }");
+    net.heartbeat("v:1", "1.1");
+    for i in 0..20_000u32 {
+        net.heartbeat("x:9", &format!("{}.{}", 2 + i / 256, i % 256));
+    }
+    let before = net.router.filter_stats();
+    net.send("v:1", "ATTITUDE", "1.1", None);
+    let after = net.router.filter_stats();
+    let checks = after.hits + after.misses - before.hits - before.misses;
+    let bound = mavtables::routing::MAX_ADDRESSES as u64 + 8;
+    assert!(checks <= bound, "one broadcast cost {checks} filter checks");
+}
