@@ -113,8 +113,8 @@ pub(super) struct RecvBatch {
     headers: Box<RecvHeaders>,
     lens: [usize; MAX_BATCH],
     addrs: [Option<SocketAddr>; MAX_BATCH],
-    /// Whether each datagram was longer than its slot (the kernel cut it).
-    cut: [bool; MAX_BATCH],
+    /// Bytes read of the datagrams of the last call that were longer than their slot.
+    cut: usize,
     count: usize,
 }
 
@@ -143,15 +143,16 @@ impl RecvBatch {
             headers,
             lens: [0; MAX_BATCH],
             addrs: [None; MAX_BATCH],
-            cut: [false; MAX_BATCH],
+            cut: 0,
             count: 0,
         }
     }
 
-    /// Datagrams received whole by the last call: (sender, bytes). A sender that is
-    /// neither IPv4 nor IPv6 is `None`.
+    /// Datagrams received by the last call: (sender, bytes). The sender is `None` for
+    /// one that is neither IPv4 nor IPv6, and for one longer than its slot, which is
+    /// not to be handed on (see [`RecvBatch::cut_bytes`]).
     pub(super) fn iter(&self) -> impl Iterator<Item = (Option<SocketAddr>, &[u8])> {
-        (0..self.count).filter(|&i| !self.cut[i]).map(move |i| {
+        (0..self.count).map(move |i| {
             let start = i * self.slot_len;
             (self.addrs[i], &self.data[start..start + self.lens[i]])
         })
@@ -161,10 +162,7 @@ impl RecvBatch {
     /// slot: the kernel dropped the rest, so they are not handed on (a frame cut there
     /// would be joined to the next datagram's bytes).
     pub(super) fn cut_bytes(&self) -> usize {
-        (0..self.count)
-            .filter(|&i| self.cut[i])
-            .map(|i| self.lens[i])
-            .sum()
+        self.cut
     }
 }
 
@@ -189,6 +187,7 @@ pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result
             std::ptr::null_mut(),
         )
     };
+    batch.cut = 0;
     if n < 0 {
         batch.count = 0;
         return Err(io::Error::last_os_error());
@@ -197,7 +196,10 @@ pub(super) fn recv_batch(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result
     for i in 0..n {
         batch.lens[i] = (h.msgs[i].msg_len as usize).min(batch.slot_len);
         batch.addrs[i] = from_raw(&h.names[i]);
-        batch.cut[i] = h.msgs[i].msg_hdr.msg_flags & libc::MSG_TRUNC != 0;
+        if h.msgs[i].msg_hdr.msg_flags & libc::MSG_TRUNC != 0 {
+            batch.addrs[i] = None;
+            batch.cut += batch.lens[i];
+        }
     }
     batch.count = n;
     Ok(n)
@@ -214,13 +216,17 @@ pub(super) fn recv_one(fd: &impl AsRawFd, batch: &mut RecvBatch) -> io::Result<u
     // SAFETY: the first header points at `names[0]`, `iovs[0]` and the first `slot_len`
     // bytes of `data`, all owned by `batch`, which is borrowed exclusively for the call.
     let n = unsafe { libc::recvmsg(fd, &mut h.msgs[0].msg_hdr, libc::MSG_DONTWAIT) };
+    batch.cut = 0;
     if n < 0 {
         batch.count = 0;
         return Err(io::Error::last_os_error());
     }
     batch.lens[0] = (n as usize).min(batch.slot_len);
     batch.addrs[0] = from_raw(&h.names[0]);
-    batch.cut[0] = h.msgs[0].msg_hdr.msg_flags & libc::MSG_TRUNC != 0;
+    if h.msgs[0].msg_hdr.msg_flags & libc::MSG_TRUNC != 0 {
+        batch.addrs[0] = None;
+        batch.cut = batch.lens[0];
+    }
     batch.count = 1;
     Ok(1)
 }
@@ -734,7 +740,11 @@ mod tests {
                 match got {
                     Ok(_) => {
                         cut += batch.cut_bytes();
-                        whole.extend(batch.iter().map(|(_, b)| b.to_vec()));
+                        whole.extend(
+                            batch
+                                .iter()
+                                .filter_map(|(from, b)| from.map(|_| b.to_vec())),
+                        );
                     }
                     Err(e) if e.kind() == io::ErrorKind::WouldBlock => std::thread::yield_now(),
                     Err(e) => panic!("recv: {e}"),
