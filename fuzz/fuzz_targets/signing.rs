@@ -25,7 +25,7 @@ fn admit(
     streams: &mut StreamTable,
     last: &mut HashMap<(u8, u8, u8), u64>,
 ) {
-    let admission = check.admit(frame, streams);
+    let admission = check.admit(frame, streams, &StreamTable::default());
     let Some(sig) = frame.signature() else {
         assert_ne!(admission, Admission::Signed);
         return;

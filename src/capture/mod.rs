@@ -103,6 +103,7 @@ impl CaptureError {
             CaptureError::Pcap(
                 pcap::PcapError::Truncated(at)
                 | pcap::PcapError::BadLength(at)
+                | pcap::PcapError::BadByteOrder(at)
                 | pcap::PcapError::TooManyInterfaces(at),
             ) => *at,
             CaptureError::Pcap(_) => 0,

@@ -46,6 +46,8 @@ pub enum PcapError {
     Truncated(u64),
     /// The pcapng block at this offset has a length no block can have.
     BadLength(u64),
+    /// The pcapng section header at this offset has no byte-order magic.
+    BadByteOrder(u64),
     /// The pcapng section describes more than [`super::pcapng::MAX_INTERFACES`]
     /// interfaces (the one at this offset is one too many).
     TooManyInterfaces(u64),
@@ -59,6 +61,12 @@ impl std::fmt::Display for PcapError {
             PcapError::Truncated(_) => write!(f, "file ends inside a packet record"),
             PcapError::BadLength(_) => {
                 write!(f, "a block's length is not a multiple of 4 of at least 12")
+            }
+            PcapError::BadByteOrder(_) => {
+                write!(
+                    f,
+                    "a section header without the byte-order magic 0x1A2B3C4D"
+                )
             }
             PcapError::TooManyInterfaces(_) => write!(
                 f,

@@ -173,7 +173,7 @@ impl RecordFormat for PcapNg {
             {
                 Some(BYTE_ORDER_MAGIC) => b.big_endian = false,
                 Some(m) if m.swap_bytes() == BYTE_ORDER_MAGIC => b.big_endian = true,
-                Some(_) => return Err(PcapError::BadLength(at)),
+                Some(_) => return Err(PcapError::BadByteOrder(at)),
                 None => return Err(PcapError::Truncated(at)),
             }
         }

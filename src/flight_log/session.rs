@@ -276,7 +276,13 @@ impl FlightLogger {
             (Some(a), None) if a.ending.is_none() && self.autopilot.is_some() => {
                 self.begin_ending(now);
             }
-            (Some(_), None) if self.autopilot.is_none() => self.stop(now),
+            (Some(_), None) if self.autopilot.is_none() => {
+                self.stop(now);
+                // The autopilot went quiet, its stop request most likely lost: when it is
+                // back, blocks near where this log got to are this log going on (an
+                // ArduPilot keeps sending until its own timeout), not strays.
+                self.last_end = None;
+            }
             _ => {}
         }
     }
@@ -313,9 +319,9 @@ impl FlightLogger {
     }
 
     /// Begins a log in `protocol`: asks for the stream, tells the writer. Blocks of the
-    /// log before (one that ended at a disarm, or when the autopilot went quiet) may
-    /// still be on their way: for `DRAIN` they are told from the new log's as when the
-    /// autopilot begins a new log by itself.
+    /// log before (one that ended at a disarm, a reload or a change of protocol, while
+    /// the autopilot was heard) may still be on their way: for `DRAIN` they are told
+    /// from the new log's as when the autopilot begins a new log by itself.
     fn start(&mut self, protocol: Protocol, now: Timestamp) {
         self.send_start(protocol);
         self.begin(protocol);

@@ -117,8 +117,12 @@ pub(super) fn remove(
                 continue;
             }
         }
+        let bytes = fs::symlink_metadata(&path).map_or(0, |m| m.len());
         match fs::remove_file(&path) {
-            Ok(()) => add(removed, 1),
+            Ok(()) => {
+                add(removed, 1);
+                made.freeing.removed(bytes, Instant::now());
+            }
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
             Err(e) => {
                 log::warn(&format_args!(
@@ -158,13 +162,8 @@ pub(super) fn room_plan(
         return room;
     }
     let files = made.recordings();
-    let plan = rotation::make_room(&files, counted, needed, min_free, current);
-    let removed = (files.iter())
-        .filter(|f| plan.remove.contains(&f.name))
-        .map(|f| f.bytes)
-        .sum();
-    made.freeing.removed(free, removed, now);
-    plan
+    // What is removed (by `remove`) is counted as being freed from then on.
+    rotation::make_room(&files, counted, needed, min_free, current)
 }
 
 /// How long space that removed files should free is counted as free before the disk
@@ -180,6 +179,8 @@ const FREEING_WAIT: Duration = Duration::from_secs(30);
 pub(crate) struct Freeing {
     /// The disk's free space when they were removed, their bytes, and when.
     pending: Option<(u64, u64, Instant)>,
+    /// The free space the disk showed when it was last looked at.
+    seen: Option<u64>,
 }
 
 impl Freeing {
@@ -187,6 +188,7 @@ impl Freeing {
     /// being freed while the disk shows no more than before the removal (what was
     /// written since is already less in `free`).
     fn counted(&mut self, free: u64, now: Instant) -> u64 {
+        self.seen = Some(free);
         match self.pending {
             Some((before, bytes, since)) if free <= before && now < since + FREEING_WAIT => {
                 free.saturating_add(bytes)
@@ -198,9 +200,9 @@ impl Freeing {
         }
     }
 
-    /// Files of `bytes` in all are removed at `now`, when the disk showed `free`.
-    fn removed(&mut self, free: u64, bytes: u64, now: Instant) {
-        if bytes > 0 {
+    /// A file of `bytes` was removed at `now` (after the disk was looked at).
+    fn removed(&mut self, bytes: u64, now: Instant) {
+        if let Some(free) = self.seen.filter(|_| bytes > 0) {
             let (free, bytes) = match self.pending {
                 // Still waiting for the last ones: theirs is not shown either.
                 Some((before, pending, _)) => (before.min(free), pending.saturating_add(bytes)),
@@ -239,8 +241,10 @@ mod tests {
         let mut f = Freeing::default();
         let t0 = Instant::now();
         let s = Duration::from_secs;
+        // Nothing is credited before the disk was looked at.
+        f.removed(50, t0);
         assert_eq!(f.counted(100, t0), 100);
-        f.removed(100, 50, t0);
+        f.removed(50, t0);
         // The disk does not show it yet (and 10 bytes were written since): planned
         // with the 50 to come, so no second file goes.
         assert_eq!(f.counted(90, t0 + s(1)), 140);
@@ -248,8 +252,8 @@ mod tests {
         assert_eq!(f.counted(135, t0 + s(2)), 135);
         assert_eq!(f.counted(90, t0 + s(3)), 90);
         // It never shows: after the wait, the disk is believed again.
-        f.removed(90, 50, t0);
-        f.removed(90, 20, t0 + s(1));
+        f.removed(50, t0);
+        f.removed(20, t0 + s(1));
         assert_eq!(f.counted(90, t0 + FREEING_WAIT - s(1)), 160);
         assert_eq!(f.counted(90, t0 + FREEING_WAIT + s(2)), 90);
     }

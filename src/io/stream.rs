@@ -69,41 +69,47 @@ impl StreamIo {
             match stream.read(&mut self.buffer) {
                 Ok(0) => {
                     return match self.failed.take() {
-                        Some(e) => self.lose(engine, id, now, &e),
-                        None => self.lose(engine, id, now, &"end of stream"),
+                        Some(e) => self.lose(engine, id, now, &e, true),
+                        None => self.lose(engine, id, now, &"end of stream", false),
                     };
                 }
                 Ok(n) => engine.handle_stream(id, &self.buffer[..n], now),
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
                     return match self.failed.take() {
-                        Some(e) => self.lose(engine, id, now, &e),
+                        Some(e) => self.lose(engine, id, now, &e, true),
                         None => Progress::Done,
                     };
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => {
                     let why = self.failed.take().unwrap_or(e);
-                    return self.lose(engine, id, now, &why);
+                    return self.lose(engine, id, now, &why, true);
                 }
             }
         }
         Progress::More
     }
 
-    /// Reports the stream's loss to the core, after counting the frame it cut (partly
-    /// written) as dropped: that is counted while its link is still there, since the
-    /// loss of an accepted connection removes the link.
+    /// Reports the stream's loss to the core (`error`: for a failed read or write, not
+    /// a plain end), after counting the frame it cut (partly written) as dropped: that
+    /// is counted while its link is still there, since the loss of an accepted
+    /// connection removes the link.
     fn lose(
         &mut self,
         engine: &mut Engine,
         id: InterfaceId,
         now: Timestamp,
         why: &dyn Display,
+        error: bool,
     ) -> Progress {
         if let Some((t, _)) = self.partial.take() {
             engine.on_stream_frame_lost(&t);
         }
-        engine.stream_lost(id, now, why);
+        if error {
+            engine.stream_broken(id, now, why);
+        } else {
+            engine.stream_lost(id, now, why);
+        }
         Progress::Lost
     }
 
@@ -120,7 +126,7 @@ impl StreamIo {
         now: Timestamp,
     ) -> Progress {
         if let Some(e) = self.failed.take() {
-            return self.lose(engine, id, now, &e);
+            return self.lose(engine, id, now, &e, true);
         }
         loop {
             let (t, done) = match self.partial.take() {
@@ -246,6 +252,36 @@ mod tests {
         );
         assert!(
             line(&e, "tcp:x").contains("+ 1 (send errors)"),
+            "{}",
+            e.report()
+        );
+    }
+
+    #[test]
+    fn a_failed_write_on_an_accepted_connection_is_one_io_error_of_its_server() {
+        let config = load("chain default { accept; }\n").expect("config").config;
+        let mut e = Engine::new(&config, RouterOptions::default());
+        let udp = e.add_datagram_interface("udp test".into(), 0, Default::default());
+        let server = e.add_listener("tcp test".into(), Default::default(), 0);
+        let peer = SocketAddr::from(([127, 0, 0, 1], 9));
+        let conn = e.accept(server, peer, T0).expect("accepted");
+        let mut frame = Vec::new();
+        let header = Header {
+            seq: 0,
+            system: 7,
+            component: 1,
+        };
+        encode_v2(header, 30, &[7; 28], None, &mut frame).expect("encode");
+        e.handle_datagram(udp, SocketAddr::from(([127, 0, 0, 1], 1)), &frame, T0);
+        let mut io = StreamIo::default();
+        let mut broken = Peer {
+            room: 0,
+            then: io::ErrorKind::ConnectionReset,
+        };
+        assert_eq!(io.flush(&mut broken, &mut e, conn, T0), Progress::Blocked);
+        assert_eq!(io.receive(&mut Ended, &mut e, conn, T0), Progress::Lost);
+        assert!(
+            line(&e, "tcp test").contains(" 1 I/O errors"),
             "{}",
             e.report()
         );

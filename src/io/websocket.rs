@@ -458,13 +458,25 @@ impl WebSocketDriver {
                 Ok(Message::Text(text)) => engine.stream_junk(id, text.len()),
                 // Pings are answered by tungstenite; pongs need nothing.
                 Ok(Message::Ping(_) | Message::Pong(_) | Message::Frame(_)) => {}
-                // tungstenite queued the reply. A code other than a normal end is an
-                // error (said, counted); tungstenite gives one the protocol does not
-                // allow as 1002, which it answers too.
+                // tungstenite queued the reply. A code that says something went wrong
+                // is an error (said, counted); tungstenite gives a code the protocol
+                // does not allow as 1002, which it answers too. Application codes
+                // (3000–4999) are the page's own business.
                 Ok(Message::Close(frame)) => {
-                    if let Some(f) =
-                        frame.filter(|f| !matches!(f.code, CloseCode::Normal | CloseCode::Away))
-                    {
+                    if let Some(f) = frame.filter(|f| {
+                        matches!(
+                            f.code,
+                            CloseCode::Protocol
+                                | CloseCode::Unsupported
+                                | CloseCode::Invalid
+                                | CloseCode::Policy
+                                | CloseCode::Size
+                                | CloseCode::Extension
+                                | CloseCode::Error
+                                | CloseCode::Bad(_)
+                                | CloseCode::Reserved(_)
+                        )
+                    }) {
                         let why = format!(
                             "closed by the peer with code {}: {}",
                             u16::from(f.code),

@@ -58,6 +58,10 @@ pub struct Signing {
     /// as long as the distinct keys of the process's life, 32 bytes each.
     keys: Vec<SigningKey>,
     streams: StreamTable,
+    /// The streams of the signatures the router made itself, apart from `streams`: a
+    /// frame sent back to it is a replay, but what strangers make it sign (an unsigned
+    /// flood through an open interface) must not push real streams out of the table.
+    issued: StreamTable,
     clock: SigningClock,
     changed: bool,
 }
@@ -99,7 +103,7 @@ impl Signing {
             allow_unsigned: edge.allow_unsigned,
             clock: self.clock.now(now),
         };
-        let admission = check.admit(frame, &mut self.streams);
+        let admission = check.admit(frame, &mut self.streams, &self.issued);
         if admission == Admission::Signed {
             self.changed = true;
         }
@@ -140,7 +144,7 @@ impl Signing {
             system: V2.read_system(frame),
             component: V2.read_component(frame),
         };
-        self.streams.record(stream, timestamp);
+        self.issued.record(stream, timestamp);
         Some(signed)
     }
 

@@ -67,8 +67,14 @@ impl Check<'_> {
 
     /// Checks `frame`; a frame that passes signed has its timestamp recorded in
     /// `streams`. Nothing is recorded for a refused frame, so a forgery cannot move a
-    /// stream's timestamp.
-    pub fn admit(&self, frame: &Frame<'_>, streams: &mut StreamTable) -> Admission {
+    /// stream's timestamp. `issued` holds the streams of the router's own signatures: a frame of one of them
+    /// that is not after the last the router made is a replay of it.
+    pub fn admit(
+        &self,
+        frame: &Frame<'_>,
+        streams: &mut StreamTable,
+        issued: &StreamTable,
+    ) -> Admission {
         match self.authenticate(frame) {
             Err(why) => return Admission::Refused(why),
             Ok(false) => return Admission::Unsigned,
@@ -88,6 +94,9 @@ impl Check<'_> {
             system: source.system,
             component: source.component,
         };
+        if issued.last(&stream).is_some_and(|last| timestamp <= last) {
+            return Admission::Refused(Refusal::Replayed);
+        }
         // A frame more than the window behind the clock is refused on a stream that is
         // new, and on one silent for longer than the window (one restored from an old
         // state file): either could otherwise take frames of any age. On a stream

@@ -785,17 +785,38 @@ fn a_late_px4_chunk_does_not_start_the_next_log() {
     assert_eq!((c.late, c.duplicates), (1, 0));
 }
 
-/// The link came back after the autopilot went quiet (its log ended): a block of the
-/// old log still on its way is not taken for a log joined under way, so the new log
-/// is one file from its block 0.
+/// The link came back after the autopilot went quiet for longer than the router waits
+/// (its log ended) but not for as long as ArduPilot waits: it goes on with the blocks of
+/// its log, which are written as a log joined under way, not dropped as strays.
 #[test]
-fn a_late_dataflash_block_after_a_lost_link_does_not_open_a_file_of_its_own() {
+fn an_ardupilot_log_going_on_after_a_lost_link_is_written() {
     let mut v = after_a_long_log();
     v.wait(Duration::from_secs(6));
-    v.from(AUTOPILOT, &block(1100, "245.190"));
     v.from(AUTOPILOT, &heartbeat(3, false));
     v.writes();
-    v.from(AUTOPILOT, &block(1101, "245.190"));
+    for s in 1100..1110 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    assert_eq!(data(&v.writes()).0, expected(1100..1110));
+    let (c, _) = v.e.flight_log_counters().expect("configured");
+    assert_eq!(c.late, 0);
+}
+
+/// Armed again while the last ArduPilot log drains: a block of that log still on its
+/// way does not open a file of its own as a log joined under way; the new log is one
+/// file from its block 0.
+#[test]
+fn a_late_dataflash_block_after_arming_again_does_not_open_a_file_of_its_own() {
+    let mut v = Vehicle::new(CONF);
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    for s in 0..1100 {
+        v.from(AUTOPILOT, &block(s, "245.190"));
+    }
+    v.from(AUTOPILOT, &heartbeat(3, false));
+    v.wait(Duration::from_millis(300));
+    v.from(AUTOPILOT, &heartbeat(3, true));
+    v.writes();
+    v.from(AUTOPILOT, &block(1100, "245.190"));
     v.from(AUTOPILOT, &block(0, "245.190"));
     let writes = v.writes();
     let begins = writes

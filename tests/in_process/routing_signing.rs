@@ -560,3 +560,29 @@ fn a_frame_of_an_unknown_id_is_signed_on_the_way_out() {
     assert_eq!(out[0].packet.len(), unknown.len() + 13);
     assert_ne!(out[0].packet[2] & 1, 0, "signed");
 }
+
+/// What strangers make the router sign (an unsigned flood through an open interface,
+/// from thousands of sources) does not push real streams out of the table: the ground
+/// station's frames still pass, its stream intact.
+#[test]
+fn an_unsigned_flood_signed_on_the_way_out_leaves_the_streams_alone() {
+    let mut r = Rig::new(ACCEPT_ALL, false);
+    let first = signed("ATTITUDE", "200.1", r.next());
+    assert_eq!(r.through(&first), 1);
+    for n in 0..mavtables::signing::streams::MAX_STREAMS as u32 {
+        let from = format!("{}.{}", 1 + n / 250, 1 + n % 250);
+        r.e.handle_datagram(
+            r.open,
+            peer(2),
+            &frame("HEARTBEAT", &from, None),
+            Timestamp::ZERO,
+        );
+        if n % 100 == 0 {
+            r.sent(r.keyed);
+        }
+    }
+    r.sent(r.keyed);
+    assert_eq!(r.through(&first), 0, "still a replay: its stream is known");
+    let next = signed("ATTITUDE", "200.1", r.next());
+    assert_eq!(r.through(&next), 1, "the ground station's next frame");
+}

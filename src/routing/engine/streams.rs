@@ -141,6 +141,24 @@ impl Engine {
         self.refresh_deadline(id);
     }
 
+    /// Stream `id` was lost at `now` for an error (`why`: a failed read or write), not
+    /// a plain end of stream: as [`Engine::stream_lost`], and the error of an accepted
+    /// connection is counted too, on its server (a configured stream counts every loss).
+    pub fn stream_broken(&mut self, id: InterfaceId, now: Timestamp, why: &dyn Display) {
+        if let Some(interface) = self.interfaces.get_mut(id.0)
+            && matches!(
+                interface.kind,
+                Kind::Stream {
+                    accepted_by: Some(_),
+                    ..
+                }
+            )
+        {
+            interface.io_errors += 1;
+        }
+        self.stream_lost(id, now, why);
+    }
+
     /// Removes accepted connection `id` of `server` and its link.
     pub(super) fn close_connection(&mut self, id: InterfaceId, server: InterfaceId, link: LinkId) {
         let Some(closed) = self.interfaces.try_remove(id.0) else {
