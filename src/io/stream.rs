@@ -212,18 +212,28 @@ mod tests {
         let client = e.add_stream_client("tcp connect x".into(), "tcp:x", 0, T0);
         e.handle_timeout(T0);
         e.stream_opened(client, T0);
-        let from = SocketAddr::from(([127, 0, 0, 1], 1));
         for seq in 0..2 {
-            let header = Header {
-                seq,
-                system: 7,
-                component: 1,
-            };
-            let mut frame = Vec::new();
-            encode_v2(header, 30, &[7; 28], None, &mut frame).expect("encode");
-            e.handle_datagram(udp, from, &frame, T0);
+            e.handle_datagram(udp, FROM, &attitude(seq), T0);
         }
         (e, client)
+    }
+
+    /// Where the UDP side's frames come from.
+    const FROM: SocketAddr = SocketAddr::V4(std::net::SocketAddrV4::new(
+        std::net::Ipv4Addr::LOCALHOST,
+        1,
+    ));
+
+    /// An ATTITUDE broadcast from 7.1 with sequence number `seq`.
+    fn attitude(seq: u8) -> Vec<u8> {
+        let header = Header {
+            seq,
+            system: 7,
+            component: 1,
+        };
+        let mut frame = Vec::new();
+        encode_v2(header, 30, &[7; 28], None, &mut frame).expect("encode");
+        frame
     }
 
     /// The report's line of `label`.
@@ -265,14 +275,7 @@ mod tests {
         let server = e.add_listener("tcp test".into(), Default::default(), 0);
         let peer = SocketAddr::from(([127, 0, 0, 1], 9));
         let conn = e.accept(server, peer, T0).expect("accepted");
-        let mut frame = Vec::new();
-        let header = Header {
-            seq: 0,
-            system: 7,
-            component: 1,
-        };
-        encode_v2(header, 30, &[7; 28], None, &mut frame).expect("encode");
-        e.handle_datagram(udp, SocketAddr::from(([127, 0, 0, 1], 1)), &frame, T0);
+        e.handle_datagram(udp, FROM, &attitude(0), T0);
         let mut io = StreamIo::default();
         let mut broken = Peer {
             room: 0,

@@ -471,6 +471,11 @@ fn a_frame_the_router_signed_is_refused_when_sent_back() {
     assert!(r.e.report().contains("1 replayed"), "{}", r.e.report());
 }
 
+/// The `n`th of many distinct sources, `S.C`.
+fn nth_source(n: u32) -> String {
+    format!("{}.{}", 1 + n / 250, 1 + n % 250)
+}
+
 /// When the stream table is full, the streams it forgets leave their last timestamp
 /// behind: a forgotten stream's frames cannot be replayed as a new stream's.
 #[test]
@@ -479,7 +484,7 @@ fn a_stream_pushed_out_of_a_full_table_cannot_be_replayed() {
     let captured = signed("ATTITUDE", "200.1", r.next());
     assert_eq!(r.through(&captured), 1);
     for n in 0..mavtables::signing::streams::MAX_STREAMS as u32 {
-        let from = format!("{}.{}", 1 + n / 250, 1 + n % 250);
+        let from = nth_source(n);
         let ts = r.next();
         r.e.handle_datagram(
             r.keyed,
@@ -570,7 +575,7 @@ fn an_unsigned_flood_signed_on_the_way_out_leaves_the_streams_alone() {
     let first = signed("ATTITUDE", "200.1", r.next());
     assert_eq!(r.through(&first), 1);
     for n in 0..mavtables::signing::streams::MAX_STREAMS as u32 {
-        let from = format!("{}.{}", 1 + n / 250, 1 + n % 250);
+        let from = nth_source(n);
         r.e.handle_datagram(
             r.open,
             peer(2),
