@@ -253,6 +253,13 @@ fn digest(bin: &str, case: &Case, stdin: bool, scratch: &Scratch) -> String {
         let text = String::from_utf8_lossy(b);
         let mut s = String::new();
         for line in text.split_inclusive('\n') {
+            // Standard input is named `-` where a file is named by its path (also in
+            // the error line that says where the reading stopped).
+            let (head, line) = match line.strip_prefix("error: ") {
+                Some(rest) => ("error: ", rest),
+                None => ("", line),
+            };
+            s.push_str(head);
             match line.strip_prefix("-: ") {
                 Some(rest) if stdin => {
                     s.push_str(&first);
