@@ -31,6 +31,11 @@ pub struct Refused {
 }
 
 impl Refused {
+    /// Remotes refused as not allowed, as reported: outside the ranges, or from port 0.
+    pub fn not_allowed_in_all(&self) -> u64 {
+        self.not_allowed + self.port_zero
+    }
+
     /// Counts a refusal; true the first time for its reason (the one worth saying).
     pub(crate) fn count(&mut self, why: Refusal) -> bool {
         let n = match why {

@@ -135,7 +135,7 @@ impl fmt::Display for InterfaceReport<'_> {
             write!(
                 f,
                 ", {} refused (not allowed), {} refused (max_peers)",
-                r.not_allowed + r.port_zero,
+                r.not_allowed_in_all(),
                 r.full
             )?;
         }

@@ -105,7 +105,7 @@ pub(crate) fn snapshot(src: Sources<'_>, now: Timestamp) -> StatsSnapshot {
         e.unknown_id += p.unknown_id;
         e.junk_bytes += p.junk_bytes;
         e.io_errors += i.io_errors;
-        e.refused_not_allowed += i.refused.not_allowed + i.refused.port_zero;
+        e.refused_not_allowed += i.refused.not_allowed_in_all();
         e.refused_max_peers += i.refused.full;
         if let Some(edge) = &i.signing {
             let g = e.signing.get_or_insert_with(SigningStats::default);

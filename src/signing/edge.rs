@@ -94,14 +94,8 @@ impl Signing {
 
     /// Checks `frame`, arrived at `now` on an interface with `edge`.
     pub fn admit(&mut self, edge: &Edge, frame: &Frame<'_>, now: Timestamp) -> Admission {
-        let Some(key) = self.keys.get(edge.key_slot) else {
+        let Some(check) = check_of(&self.keys, edge, self.clock.now(now)) else {
             return Admission::Refused(Refusal::BadSignature);
-        };
-        let check = Check {
-            key,
-            key_slot: edge.key_slot,
-            allow_unsigned: edge.allow_unsigned,
-            clock: self.clock.now(now),
         };
         let admission = check.admit(frame, &mut self.streams, &self.issued);
         if admission == Admission::Signed {
@@ -114,16 +108,11 @@ impl Signing {
     /// signature goes (its stream not looked at): `Ok(true)` signed with the key,
     /// `Ok(false)` unsigned where unsigned frames are taken.
     pub fn authenticate(&self, edge: &Edge, frame: &Frame<'_>) -> Result<bool, Refusal> {
-        let Some(key) = self.keys.get(edge.key_slot) else {
-            return Err(Refusal::BadSignature);
-        };
-        let check = Check {
-            key,
-            key_slot: edge.key_slot,
-            allow_unsigned: edge.allow_unsigned,
-            clock: 0,
-        };
-        check.authenticate(frame)
+        // The clock is not looked at without a stream.
+        match check_of(&self.keys, edge, 0) {
+            Some(check) => check.authenticate(frame),
+            None => Err(Refusal::BadSignature),
+        }
     }
 
     /// `frame` signed for sending at `now` out of an interface with `edge`, or `None` if
@@ -220,6 +209,17 @@ impl Signing {
             streams,
         })
     }
+}
+
+/// The check of `edge` (its key among `keys`) with the signing clock at `clock`; `None`
+/// if its key slot is empty.
+fn check_of<'a>(keys: &'a [SigningKey], edge: &Edge, clock: SigningTime) -> Option<Check<'a>> {
+    Some(Check {
+        key: keys.get(edge.key_slot)?,
+        key_slot: edge.key_slot,
+        allow_unsigned: edge.allow_unsigned,
+        clock,
+    })
 }
 
 #[cfg(test)]

@@ -29,6 +29,14 @@ pub(crate) fn escape_label(value: &str) -> String {
 struct Out(String);
 
 impl Out {
+    /// One unlabelled counter family per `(name, help, value)`.
+    fn counters(&mut self, list: &[(&str, &str, u64)]) {
+        for &(name, help, value) in list {
+            self.family(name, "counter", help);
+            self.sample(name, &[], value);
+        }
+    }
+
     fn family(&mut self, name: &str, kind: &str, help: &str) {
         let _ = writeln!(self.0, "# HELP {name} {help}");
         let _ = writeln!(self.0, "# TYPE {name} {kind}");
@@ -355,10 +363,7 @@ pub(crate) fn render(s: &StatsSnapshot) -> String {
             s.filter_cache_misses,
         ),
     ];
-    for (name, help, value) in scalars {
-        o.family(name, "counter", help);
-        o.sample(name, &[], value);
-    }
+    o.counters(&scalars);
     o.family(
         "mavtables_queued_bytes",
         "gauge",
@@ -447,10 +452,7 @@ fn flight_log(o: &mut Out, f: &FlightLogStats) {
             f.files,
         ),
     ];
-    for (name, help, value) in counters {
-        o.family(name, "counter", help);
-        o.sample(name, &[], value);
-    }
+    o.counters(&counters);
     o.family(
         "mavtables_flight_log_blocks_dropped_total",
         "counter",

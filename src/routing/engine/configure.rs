@@ -210,28 +210,28 @@ impl Engine {
                 .collect();
             reload::plan_interfaces(&old, &new)
         };
+        let record_changed = self.config.record != config.record;
+        let stats_changed = self.config.stats != config.stats;
+        let signing_state_changed =
+            self.config.signing_state_path(|_| None) != config.signing_state_path(|_| None);
         let mut done = Reconfigured {
             dialect_changed: parsing_changed,
             rules: rules.total,
             rules_changed: rules.changed,
             rules_removed: rules.removed,
             default_changed: !rules.default_carried,
-            record_changed: self.config.record != config.record,
-            stats_changed: self.config.stats != config.stats,
-            signing_state_changed: self.config.signing_state_path(|_| None)
-                != config.signing_state_path(|_| None),
+            record_changed,
+            stats_changed,
+            signing_state_changed,
             settings_changed: [
                 ("queue", self.config.queue != config.queue),
                 ("dedup", self.config.dedup != config.dedup),
                 ("group", self.config.groups != config.groups),
                 ("heartbeat", self.config.heartbeat != config.heartbeat),
-                ("stats", self.config.stats != config.stats),
-                ("record", self.config.record != config.record),
+                ("stats", stats_changed),
+                ("record", record_changed),
                 ("flight_log", self.config.flight_log != config.flight_log),
-                (
-                    "signing_state",
-                    self.config.signing_state_path(|_| None) != config.signing_state_path(|_| None),
-                ),
+                ("signing_state", signing_state_changed),
             ]
             .into_iter()
             .filter_map(|(name, changed)| changed.then_some(name))
